@@ -1,0 +1,107 @@
+"""Initial conditions ("prepatterns"), seeded by a `jax.random` key.
+
+The leopard paper (section 7.1) uses two kinds: A constant 4 with B uniform in [4, 5),
+and a fully constant state (A = B = 4) where randomness comes later from localised
+production and cell division. The thesis uses a mean and a deviation per species
+(uniform in [mean - dev, mean + dev)).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from ._checks import check_finite, check_range, default_float
+from ._state import State
+
+
+def _shape2(shape):
+    try:
+        rows, cols = (int(s) for s in shape)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"shape must be (rows, cols) (got {shape!r})") from err
+    if rows < 1 or cols < 1:
+        raise ValueError(f"shape must be at least (1, 1) (got {(rows, cols)})")
+    return rows, cols
+
+
+def random_state(key, shape, *species, names=None, capacity=None) -> State:
+    """A state with one entry per species: a constant, or a (low, high) uniform range.
+
+    `random_state(key, (100, 100), 4.0, (4.0, 5.0))` is the paper's A = 4, B ~ U[4, 5).
+    Each species draws from its own sub-key, so adding a species does not change the others.
+    """
+    rows, cols = _shape2(shape)
+    if not species:
+        raise ValueError("random_state needs at least one species specification")
+    dtype = default_float()
+    arrays = []
+    for i, spec in enumerate(species):
+        if isinstance(spec, (tuple, list)):
+            if len(spec) != 2:
+                raise ValueError(f"species {i}: a range must be (low, high) (got {spec!r})")
+            lo, hi = (float(v) for v in spec)
+            check_finite(lo, f"species {i} low")
+            check_finite(hi, f"species {i} high")
+            check_range(hi, f"species {i} high", low=lo)
+            arrays.append(jax.random.uniform(jax.random.fold_in(key, i), (rows, cols), dtype, lo, hi))
+        else:
+            check_finite(spec, f"species {i} value")
+            arrays.append(jnp.full((rows, cols), spec, dtype))
+    return State.from_arrays(arrays, capacity=capacity, names=names)
+
+
+def constant_state(shape, *values, names=None, capacity=None) -> State:
+    """A state where every species is constant (the paper's A = B = 4 prepattern)."""
+    return random_state(jax.random.key(0), shape, *values, names=names, capacity=capacity)
+
+
+def paper_state(key, shape, capacity=None) -> State:
+    """The leopard paper's usual start: A = 4 everywhere, B uniform in [4, 5)."""
+    return random_state(key, shape, 4.0, (4.0, 5.0), names=("a", "b"), capacity=capacity)
+
+
+def thesis_state(key, shape, dev=2.0, mean=4.0, capacity=None) -> State:
+    """The thesis's `conc 4 dev 2` start: both species uniform in [mean - dev, mean + dev)."""
+    return random_state(key, shape, (mean - dev, mean + dev), (mean - dev, mean + dev), names=("a", "b"),
+                        capacity=capacity)
+
+
+def gray_scott_state(key, shape, square=0.2, noise=0.02, capacity=None) -> State:
+    """Pearson's start for Gray-Scott: u = 1, v = 0, a central square at (u, v) = (0.5, 0.25),
+    plus uniform noise of amplitude `noise`. `square` is the side as a fraction of the lattice."""
+    rows, cols = _shape2(shape)
+    dtype = default_float()
+    u = jnp.ones((rows, cols), dtype)
+    v = jnp.zeros((rows, cols), dtype)
+    hr, hc = max(1, int(rows * square) // 2), max(1, int(cols * square) // 2)
+    r0, c0 = rows // 2, cols // 2
+    u = u.at[r0 - hr : r0 + hr, c0 - hc : c0 + hc].set(0.5)
+    v = v.at[r0 - hr : r0 + hr, c0 - hc : c0 + hc].set(0.25)
+    ku, kv = jax.random.split(key)
+    u = jnp.clip(u + noise * jax.random.uniform(ku, (rows, cols), dtype, -1.0, 1.0), 0.0, 1.0)
+    v = jnp.clip(v + noise * jax.random.uniform(kv, (rows, cols), dtype, -1.0, 1.0), 0.0, 1.0)
+    return State.from_arrays([u, v], capacity=capacity, names=("u", "v"))
+
+
+def initial_state(model, key, shape, capacity=None) -> State:
+    """The customary random start for `model`: see `paper_state`, `gray_scott_state`.
+
+    Reinforcement starts uniform in [t - w, t + w); composites stack their parts' starts.
+    """
+    from ._models import Bard, Composite, GrayScott, Reinforcement, Turing
+
+    if isinstance(model, Turing):
+        return paper_state(key, shape, capacity)
+    if isinstance(model, Bard):
+        return thesis_state(key, shape, capacity=capacity)
+    if isinstance(model, GrayScott):
+        return gray_scott_state(key, shape, capacity=capacity)
+    if isinstance(model, Reinforcement):
+        t, w = float(jnp.max(model.threshold)), float(jnp.max(model.width))
+        return random_state(key, shape, (t - w, t + w), names=("c",), capacity=capacity)
+    if isinstance(model, Composite):
+        parts = [initial_state(p, jax.random.fold_in(key, i), shape, capacity) for i, p in enumerate(model.parts)]
+        fields = jnp.concatenate([p.fields for p in parts])
+        return State(fields, parts[0].size, names=model.species)
+    raise ValueError(f"no default initial state for {type(model).__name__}; build one with random_state")

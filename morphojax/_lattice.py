@@ -1,0 +1,126 @@
+"""The lattice: discrete Laplacians, boundaries (ghost cells) and the explicit-Euler limit.
+
+Fields have shape (..., rows, cols). A boundary is expressed by one ring of ghost cells
+around the active region:
+
+- "wrap": toroidal, the ghost row above row 0 is the last active row, and so on;
+- "no-flux": the ghost cell equals the edge cell next to it (scipy.ndimage mode="reflect"),
+  so nothing crosses the border and total mass is conserved by pure diffusion.
+
+The Laplacian is then a fixed-size stencil over the padded array, which XLA fuses with
+the reaction into one loop. The active region may be smaller than the array (a growing
+lattice at fixed capacity); ghost cells are then placed right after the active rows and
+columns, so nothing leaks in from unused capacity.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from ._checks import check_choice
+
+BOUNDARIES = ("wrap", "no-flux")
+STENCILS = ("nine-point", "five-point")
+
+# Largest |eigenvalue| of each stencil (at the checkerboard mode), in cells^-2:
+# nine-point [[1,4,1],[4,-20,4],[1,4,1]]/6 -> 16/3; five-point [[0,1,0],[1,-4,1],[0,1,0]] -> 8.
+_SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0}
+_STENCIL_ALIASES = {"9": "nine-point", "9-point": "nine-point", "nine": "nine-point",
+                    "5": "five-point", "5-point": "five-point", "five": "five-point"}
+_BOUNDARY_ALIASES = {"periodic": "wrap", "toroidal": "wrap", "noflux": "no-flux", "neumann": "no-flux",
+                     "reflect": "no-flux"}
+
+
+def normalise_stencil(stencil) -> str:
+    key = _STENCIL_ALIASES.get(str(stencil).lower(), str(stencil).lower())
+    check_choice(key, "stencil", STENCILS)
+    return key
+
+
+def normalise_boundary(boundary) -> str:
+    key = _BOUNDARY_ALIASES.get(str(boundary).lower(), str(boundary).lower())
+    check_choice(key, "boundary", BOUNDARIES)
+    return key
+
+
+def stencil_weights(stencil: str = "nine-point"):
+    """The 3x3 stencil as a NumPy-compatible nested list (cells^-2)."""
+    stencil = normalise_stencil(stencil)
+    if stencil == "nine-point":
+        return [[1 / 6, 4 / 6, 1 / 6], [4 / 6, -20 / 6, 4 / 6], [1 / 6, 4 / 6, 1 / 6]]
+    return [[0.0, 1.0, 0.0], [1.0, -4.0, 1.0], [0.0, 1.0, 0.0]]
+
+
+def max_stable_dt(max_diffusion: float, stencil: str = "nine-point") -> float:
+    """Largest dt for which explicit Euler on pure diffusion is stable: dt * D * rho <= 2."""
+    rho = _SPECTRAL_RADIUS[normalise_stencil(stencil)]
+    return float("inf") if max_diffusion <= 0 else 2.0 / (rho * max_diffusion)
+
+
+def pad(x, boundary: str, size=None):
+    """Add one ring of ghost cells to the last two axes of `x`.
+
+    With `size=None` the whole array is the active lattice (static shapes, the fast path).
+    Otherwise `size` = (rows, cols) of the active region at the top-left corner (may be
+    traced): cells beyond it must already be zero, and the ghost cells are written right
+    after the last active row and column.
+    """
+    widths = [(0, 0)] * (x.ndim - 2) + [(1, 1), (1, 1)]
+    if size is None:
+        return jnp.pad(x, widths, mode="wrap" if boundary == "wrap" else "edge")
+    h, w = size[0], size[1]
+    p = jnp.pad(x, widths)
+    # rows first (on the interior columns), then columns over the full height, so the
+    # corner ghosts come out right for both boundaries.
+    if boundary == "wrap":
+        top, bottom = _row(p, h), _row(p, 1)
+    else:
+        top, bottom = _row(p, 1), _row(p, h)
+    p = _set_row(p, 0, top)
+    p = _set_row(p, h + 1, bottom)
+    if boundary == "wrap":
+        left, right = _col(p, w), _col(p, 1)
+    else:
+        left, right = _col(p, 1), _col(p, w)
+    p = _set_col(p, 0, left)
+    p = _set_col(p, w + 1, right)
+    return p
+
+
+def _row(p, i):
+    return jax.lax.dynamic_slice_in_dim(p, i, 1, axis=p.ndim - 2)
+
+
+def _col(p, j):
+    return jax.lax.dynamic_slice_in_dim(p, j, 1, axis=p.ndim - 1)
+
+
+def _set_row(p, i, row):
+    return jax.lax.dynamic_update_slice_in_dim(p, row, i, axis=p.ndim - 2)
+
+
+def _set_col(p, j, col):
+    return jax.lax.dynamic_update_slice_in_dim(p, col, j, axis=p.ndim - 1)
+
+
+def laplacian_padded(p, stencil: str = "nine-point"):
+    """Laplacian of the interior of a ghost-padded array `p` (..., rows + 2, cols + 2)."""
+    c = p[..., 1:-1, 1:-1]
+    edges = p[..., :-2, 1:-1] + p[..., 2:, 1:-1] + p[..., 1:-1, :-2] + p[..., 1:-1, 2:]
+    if stencil == "five-point":
+        return edges - 4.0 * c
+    corners = p[..., :-2, :-2] + p[..., :-2, 2:] + p[..., 2:, :-2] + p[..., 2:, 2:]
+    return (4.0 * edges + corners - 20.0 * c) * (1.0 / 6.0)
+
+
+def laplacian(x, boundary: str = "wrap", stencil: str = "nine-point"):
+    """Discrete Laplacian of `x` (..., rows, cols) with the given boundary and stencil."""
+    return laplacian_padded(pad(jnp.asarray(x), normalise_boundary(boundary)), normalise_stencil(stencil))
+
+
+def active_mask(shape, size):
+    """Boolean (rows, cols) mask of the active region `size` inside an array of `shape`."""
+    rows = jnp.arange(shape[0])[:, None] < size[0]
+    cols = jnp.arange(shape[1])[None, :] < size[1]
+    return rows & cols

@@ -1,0 +1,418 @@
+"""Stepping: forward Euler under `lax.scan`, with clamps, blow-up detection and snapshots.
+
+One step, as in the leopard paper (section 7): integrate reaction + diffusion with forward
+Euler, add any localised production (sources), clamp every species to [lower, upper], and
+expand the lattice when the growth schedule says so.
+
+`simulate` returns the final state; `rollout` also returns snapshots every n steps.
+Both are pure functions of (model, state, dt, key): usable under `jax.jit`, `jax.vmap`
+and `jax.grad`. Non-array configuration (steps, boundary, stencil, ...) is static.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable, NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from ._checks import as_float_array, check_finite, check_range, is_concrete
+from ._lattice import active_mask, laplacian_padded, max_stable_dt, normalise_boundary, normalise_stencil, pad
+from ._models import AbstractModel, per_species
+from ._state import State
+
+
+class SimulationError(ValueError):
+    """A run that went wrong: non-finite values (with the step), or growth past capacity."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Barrier:
+    """Smooth bounds instead of clipping (leopard paper section 5.4).
+
+    Adds 1 / (x^k - L^k) for a finite lower limit L >= 0 and -1 / (U^k - x^k) + 1 / U^k
+    for a finite upper limit U to each species' reaction, so concentrations stay inside
+    (L, U) without a clamp. The paper finds k = 2 gives patterns like clipping, with a
+    time step about 20x smaller for stability. The initial state must lie strictly inside.
+    """
+
+    k: int = 2
+
+    def terms(self, x, lower, upper):
+        k = self.k
+        lo_ok = jnp.isfinite(lower)
+        hi_ok = jnp.isfinite(upper)
+        lo = jnp.where(lo_ok, lower, 0.0)
+        hi = jnp.where(hi_ok, upper, 1.0)
+        push_up = jnp.where(lo_ok, 1.0 / (x**k - lo**k), 0.0)
+        push_down = jnp.where(hi_ok, -1.0 / (hi**k - x**k) + 1.0 / hi**k, 0.0)
+        return push_up + push_down
+
+
+def _bounds_policy(bounds):
+    if isinstance(bounds, Barrier):
+        return bounds
+    if bounds == "clip":
+        return "clip"
+    if bounds == "barrier":
+        return Barrier()
+    raise ValueError(f"unknown bounds {bounds!r}; allowed: 'clip', 'barrier' or Barrier(k=...)")
+
+
+class _Carry(NamedTuple):
+    p: Array  # ghost-padded fields (species, cap_rows + 2, cap_cols + 2)
+    size: Array  # active (rows, cols)
+    step: Array  # global step counter
+    bad: Array  # first step whose result was non-finite, -1 if none
+    overflow: Array  # growth wanted to pass the capacity
+
+
+class _Config(NamedTuple):
+    boundary: str
+    stencil: str
+    bounds: Any  # "clip" or Barrier
+    dynamic: bool  # active region smaller than the array (growth)
+
+
+def _make_step(model: AbstractModel, dt, cfg: _Config, growth, sources, key, origin):
+    lower = per_species(model.lower)
+    upper = per_species(model.upper)
+    diffusion = per_species(model.diffusion())
+
+    def step(c: _Carry) -> _Carry:
+        x = c.p[..., 1:-1, 1:-1]
+        rate = model.reaction(x) + diffusion * laplacian_padded(c.p, cfg.stencil)
+        if isinstance(cfg.bounds, Barrier):
+            rate = rate + cfg.bounds.terms(x, lower, upper)
+        new = x + dt * rate
+        step_key = None if key is None else jax.random.fold_in(key, c.step)
+        for j, src in enumerate(sources):
+            new = src.apply(new, c.size, jax.random.fold_in(step_key, 1 + j))
+        if cfg.bounds == "clip":
+            new = jnp.clip(new, lower, upper)
+        size, overflow = c.size, c.overflow
+        if cfg.dynamic:
+            new = jnp.where(active_mask(new.shape[-2:], size), new, 0.0)
+        if growth is not None:
+            new, size, overflow = growth.maybe_expand(
+                new, size, c.step + 1 - origin, dt, jax.random.fold_in(step_key, 0), overflow
+            )
+        p = pad(new, cfg.boundary, size if cfg.dynamic else None)
+        return _Carry(p, size, c.step + 1, c.bad, overflow)
+
+    return step
+
+
+def _scan(step, carry, n: int):
+    def body(c, _):
+        return step(c), None
+
+    if n == 0:
+        return carry
+    return jax.lax.scan(body, carry, None, length=n)[0]
+
+
+def _locate_blowup(step, start: _Carry, n: int, needed) -> Array:
+    """Re-run from `start` one step at a time to find the first non-finite step.
+
+    Runs zero iterations unless `needed`, so it costs nothing on healthy runs (also under vmap).
+    """
+    start = jax.lax.stop_gradient(start)
+
+    def cond(s):
+        c, k, found = s
+        return needed & ~found & (k < n)
+
+    def body(s):
+        c, k, _ = s
+        c = step(c)
+        return c, k + 1, ~jnp.all(jnp.isfinite(c.p))
+
+    _, k, found = jax.lax.while_loop(cond, body, (start, jnp.asarray(0, jnp.int32), jnp.asarray(False)))
+    return jnp.where(found, start.step + k, start.step + n)
+
+
+def _chunk(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
+    """`n` steps, then a finiteness check that pins down the first bad step if needed."""
+    def run(c):
+        return _scan(step, c, n)
+
+    if checkpoint:
+        run = jax.checkpoint(run)
+    c1 = run(c)
+    needed = (c1.bad < 0) & ~jnp.all(jnp.isfinite(c1.p))
+    where = _locate_blowup(step, c, n, needed)
+    return c1._replace(bad=jnp.where(needed, where, c1.bad))
+
+
+def _crop_state(c: _Carry, names, t0, step0, dt, growable) -> State:
+    return State(c.p[..., 1:-1, 1:-1], c.size, c.step, t0 + (c.step - step0) * dt, names, growable)
+
+
+@eqx.filter_jit
+def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sources, *, names, growable,
+               steps: int, cfg: _Config, chunk: int, checkpoint: bool, save_every: int | None, save_fn):
+    """The compiled core. Returns (final State, bad step, overflow flag, saved frames or None)."""
+    step = _make_step(model, dt, cfg, growth, sources, key, origin)
+    p = pad(fields, cfg.boundary, size if cfg.dynamic else None)
+    c = _Carry(p, size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False))
+
+    def chunked(c, n_total, per):
+        n_full, rem = divmod(n_total, per)
+        ys = None
+        if n_full:
+            def body(c, _):
+                c = _chunk(step, c, per, checkpoint)
+                y = None if save_every is None else save_fn(_crop_state(c, names, time0, step0, dt, growable))
+                return c, y
+
+            c, ys = jax.lax.scan(body, c, None, length=n_full)
+        if rem:
+            c = _chunk(step, c, rem, checkpoint)
+        return c, ys
+
+    per = save_every if save_every is not None else chunk
+    c, frames = chunked(c, steps, max(1, min(per, steps)) if steps else 1)
+    final = _crop_state(c, names, time0, step0, dt, growable)
+    return final, c.bad, c.overflow, frames
+
+
+def _default_chunk(steps: int, checkpoint) -> int:
+    if checkpoint is None or checkpoint is False:
+        return 128
+    if checkpoint is True:
+        return max(1, int(math.sqrt(max(steps, 1))))
+    return int(checkpoint)
+
+
+def _check_inputs(model, state, steps, dt, cfg, growth, check_dt, bounds):
+    if not isinstance(model, AbstractModel):
+        raise ValueError(f"model must be a morphojax model such as Turing(...) (got {type(model).__name__})")
+    if not isinstance(state, State):
+        raise ValueError(f"state must be a morphojax State (got {type(state).__name__})")
+    if not isinstance(steps, (int, np.integer)) or isinstance(steps, bool) or steps < 0:
+        raise ValueError(f"steps must be a non-negative integer (got {steps!r})")
+    if model.n_species != state.n_species:
+        raise ValueError(
+            f"{type(model).__name__} evolves {model.n_species} species {model.species} but the state has "
+            f"{state.n_species} ({', '.join(state.names)})"
+        )
+    check_finite(dt, "dt")
+    check_range(dt, "dt", low=0.0, low_open=True)
+    cap = state.capacity
+    for name, leaf in _named_leaves(model):
+        if getattr(leaf, "ndim", 0) >= 2:
+            try:
+                jnp.broadcast_shapes(leaf.shape[-2:], cap)
+            except ValueError:
+                raise ValueError(
+                    f"parameter map {name} has shape {leaf.shape[-2:]}, which does not broadcast to the lattice "
+                    f"{cap} (rows, cols)"
+                ) from None
+    if is_concrete(state.fields):
+        if not np.isfinite(np.asarray(state.fields)).all():
+            raise ValueError("state contains NaN or infinite values")
+    if check_dt and is_concrete(model, dt):
+        dmax = model.max_diffusion()
+        limit = max_stable_dt(dmax, cfg.stencil)
+        if float(dt) > limit:
+            raise ValueError(
+                f"dt = {float(dt):g} is beyond the explicit-Euler stability limit of the {cfg.stencil} stencil "
+                f"for the largest diffusion rate {dmax:g}: the largest stable dt is {limit:.6g}. "
+                "Use a smaller dt, or pass check_dt=False to run anyway."
+            )
+    if isinstance(cfg.bounds, Barrier) and is_concrete(state.fields, model):
+        x = np.asarray(state.fields)[:, : state.shape[0], : state.shape[1]]
+        lo = np.asarray(per_species(model.lower))
+        hi = np.asarray(per_species(model.upper))
+        if (np.asarray(model.lower) < 0).any():
+            raise ValueError("bounds='barrier' needs lower limits >= 0 (the rational terms use x^k - L^k)")
+        lo_c = lo[..., : x.shape[-2], : x.shape[-1]] if lo.ndim == 3 and lo.shape[-2:] != (1, 1) else lo
+        hi_c = hi[..., : x.shape[-2], : x.shape[-1]] if hi.ndim == 3 and hi.shape[-2:] != (1, 1) else hi
+        if not ((x > lo_c) & (x < hi_c)).all():
+            raise ValueError(
+                "bounds='barrier' needs the initial state strictly inside (lower, upper) for every species; "
+                "start from values inside the limits or use bounds='clip'"
+            )
+
+
+def _named_leaves(model):
+    params = model.parameters() if hasattr(model, "parameters") else {}
+    return [(f"{type(model).__name__}.{k}", v) for k, v in params.items()]
+
+
+def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt):
+    cfg = _Config(
+        boundary=normalise_boundary(boundary),
+        stencil=normalise_stencil(stencil),
+        bounds=_bounds_policy(bounds),
+        dynamic=bool(state.growable or growth is not None),
+    )
+    _check_inputs(model, state, steps, dt, cfg, growth, check_dt, bounds)
+    sources = tuple(sources or ())
+    if (growth is not None or sources) and key is None:
+        raise ValueError("key is required when growth or sources are used (they draw random numbers)")
+    if growth is not None:
+        if not state.growable and is_concrete(state.size):
+            raise SimulationError(
+                "this state has no room to grow: build it with State.from_arrays(..., capacity=(rows, cols)) "
+                "or use state.with_capacity((rows, cols))"
+            )
+        growth.check_capacity(state, steps, dt)
+    for s in sources:
+        s.check(state)
+    dt = as_float_array(dt, "dt").astype(state.fields.dtype)
+    return cfg, dt, sources
+
+
+def _finish(final, bad, overflow, throw: bool):
+    if not throw:
+        return final
+    if is_concrete(bad, overflow):
+        if int(bad) >= 0:
+            raise SimulationError(
+                f"the state became non-finite (NaN or Inf) at step {int(bad)}: the run blew up. "
+                "Reduce dt, check the parameters, or use throw=False to get the state anyway."
+            )
+        if bool(overflow):
+            raise SimulationError("growth exceeded the state's capacity during the run")
+        return final
+    fields = eqx.error_if(final.fields, bad >= 0, "the state became non-finite (NaN or Inf) during the run; "
+                          "run eagerly (outside jit) to get the step, or pass throw=False")
+    fields = eqx.error_if(fields, overflow, "growth exceeded the state's capacity during the run")
+    return eqx.tree_at(lambda s: s.fields, final, fields)
+
+
+def _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoint, progress, save_every, save_fn,
+           description):
+    """Run `_integrate`, in pieces with a progress bar when asked (results are identical)."""
+    chunk = _default_chunk(steps, checkpoint)
+    ckpt = bool(checkpoint)
+    origin = state.step if origin is None else jnp.asarray(origin, jnp.int32)
+    key = None if key is None else key
+    pieces = [steps]
+    if progress and steps and is_concrete(state.fields, model, dt):
+        unit = save_every or chunk
+        per = max(unit, (steps // 50) // unit * unit) if steps >= 50 * unit else steps
+        pieces = [per] * (steps // per) + ([steps % per] if steps % per else [])
+    bar = None
+    if len(pieces) > 1 or (progress and steps):
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=steps, desc=description, unit="step", leave=False)
+    frames_all = []
+    bad = jnp.asarray(-1, jnp.int32)
+    overflow = jnp.asarray(False)
+    current = state
+    try:
+        for n in pieces:
+            final, bad_i, over_i, frames = _integrate(
+                model, current.fields, current.size, current.step, current.time, dt, key, origin, growth, sources,
+                names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
+                checkpoint=ckpt, save_every=save_every, save_fn=save_fn,
+            )
+            bad = jnp.where(bad >= 0, bad, bad_i)
+            overflow = overflow | over_i
+            if frames is not None:
+                frames_all.append(frames)
+            current = final
+            if bar is not None:
+                bar.update(n)
+                if is_concrete(bad) and int(bad) >= 0:
+                    break
+    finally:
+        if bar is not None:
+            bar.close()
+    frames = None
+    if frames_all:
+        frames = frames_all[0] if len(frames_all) == 1 else jax.tree_util.tree_map(
+            lambda *xs: jnp.concatenate(xs), *frames_all)
+    return current, bad, overflow, frames
+
+
+def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str = "wrap", *,
+             stencil: str = "nine-point", bounds="clip", growth=None, sources=(), key=None,
+             check_dt: bool = True, throw: bool = True, progress: bool = False, checkpoint=None,
+             origin=None) -> State:
+    """Run `steps` forward-Euler steps of `model` from `state`; return the new State.
+
+    Args:
+        model: a model such as `Turing(ratio=4, scale=3)`.
+        state: the initial `State` (species must match the model's).
+        steps: number of steps (a Python int; simulated time is steps x dt).
+        dt: time step (unit: simulated time). Checked against the explicit-Euler limit of the
+            stencil for the largest diffusion rate unless `check_dt=False`.
+        boundary: "wrap" (toroidal) or "no-flux" (ghost cell = edge cell).
+        stencil: "nine-point" (the paper's isotropic stencil, default) or "five-point".
+        bounds: "clip" (clamp to [lower, upper] after every step, the paper's method) or
+            "barrier" / `Barrier(k)` (smooth rational terms, needs a ~20x smaller dt).
+        growth: a `Growth` schedule (random matrix expansion); needs a state with capacity.
+        sources: localised production, a sequence of `Source`.
+        key: `jax.random` key, required with growth or sources. The same key gives the same run.
+        throw: raise `SimulationError` if the state becomes NaN/Inf (with the first bad step)
+            or growth overflows the capacity. With `throw=False` the state is returned as is.
+        progress: show a progress bar (the run is split into pieces; the result is identical).
+        checkpoint: None, True (checkpoint every ~sqrt(steps) steps) or an int chunk length:
+            rematerialise inside chunks under `jax.grad`, so memory does not grow with steps.
+        origin: the step at which the growth schedule started (default: `state.step`);
+            set it when resuming inside a growing phase.
+
+    Returns:
+        The new `State`, with `step` and `time` advanced.
+    """
+    cfg, dt, sources = _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt)
+    final, bad, overflow, _ = _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoint,
+                                     progress, None, None, type(model).__name__)
+    return _finish(final, bad, overflow, throw)
+
+
+def _save_state(s: State):
+    return s
+
+
+def rollout(model: AbstractModel, state: State, steps: int, dt, every: int, boundary: str = "wrap", *,
+            save: Callable[[State], Any] | None = None, **kwargs):
+    """Like `simulate`, also saving a snapshot every `every` steps (for animations and figures).
+
+    Returns `(final_state, frames)`. By default `frames` is a State whose leaves have a
+    leading axis of length steps // every (`frames.frame(i)` is snapshot i, taken after
+    (i + 1) * every steps). With `save=fn`, `fn(state)` is saved instead, e.g.
+    `lambda s: s.fields[1].mean()`. Memory grows with the number of snapshots only.
+    """
+    if not isinstance(every, (int, np.integer)) or every < 1:
+        raise ValueError(f"every must be a positive integer number of steps (got {every!r})")
+    keys = ("stencil", "bounds", "growth", "sources", "key", "check_dt", "throw", "progress", "checkpoint", "origin")
+    unknown = set(kwargs) - set(keys)
+    if unknown:
+        raise TypeError(f"rollout() got unexpected arguments {sorted(unknown)}")
+    opts = dict(stencil="nine-point", bounds="clip", growth=None, sources=(), key=None, check_dt=True, throw=True,
+                progress=False, checkpoint=None, origin=None)
+    opts.update(kwargs)
+    cfg, dt, sources = _prepare(model, state, steps, dt, boundary, opts["stencil"], opts["bounds"], opts["growth"],
+                                opts["sources"], opts["key"], opts["check_dt"])
+    final, bad, overflow, frames = _drive(
+        model, state, steps, dt, cfg, opts["growth"], sources, opts["key"], opts["origin"], opts["checkpoint"],
+        opts["progress"], int(every), save or _save_state, type(model).__name__,
+    )
+    final = _finish(final, bad, overflow, opts["throw"])
+    return final, frames
+
+
+def run_status(model, state, steps, dt, boundary="wrap", **kwargs):
+    """Like `simulate` with `throw=False`, also returning (first non-finite step or -1, overflow).
+
+    For sweeps and fitting, where a failed member must be recorded rather than raised.
+    """
+    opts = dict(stencil="nine-point", bounds="clip", growth=None, sources=(), key=None, check_dt=True,
+                checkpoint=None, origin=None)
+    opts.update(kwargs)
+    cfg, dt, sources = _prepare(model, state, steps, dt, boundary, opts["stencil"], opts["bounds"], opts["growth"],
+                                opts["sources"], opts["key"], opts["check_dt"])
+    final, bad, overflow, _ = _drive(model, state, steps, dt, cfg, opts["growth"], sources, opts["key"],
+                                     opts["origin"], opts["checkpoint"], False, None, None, "")
+    return final, bad, overflow

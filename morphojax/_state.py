@@ -1,0 +1,188 @@
+"""The state of one simulation: species concentrations on a fixed-capacity lattice."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from ._checks import default_float, is_concrete
+
+_DEFAULT_NAMES = "abcdefghijklmnopqrstuvwxyz"
+
+
+class State(eqx.Module):
+    """Species concentrations of one simulation.
+
+    Attributes:
+        fields: array (species, capacity_rows, capacity_cols). Only the top-left
+            `size` block is the live tissue; the rest is unused capacity and holds zeros.
+        size: int32 array (rows, cols), the active lattice. Equals the capacity unless
+            the state was made to grow.
+        step: int32 scalar, steps simulated so far (across calls and phases).
+        time: scalar, simulated time so far (sum of steps x dt).
+        names: species names (static), e.g. ("a", "b").
+        growable: (static) True when the state has room to grow (made with a `capacity`);
+            steppers then keep the active region dynamic, otherwise they use the faster
+            fixed-size path.
+
+    Build one with `State.from_arrays([a, b])` or a model's `initial_state(key, shape)`;
+    get NumPy arrays back with `state.arrays()`.
+    """
+
+    fields: Array
+    size: Array
+    step: Array
+    time: Array
+    names: tuple[str, ...] = eqx.field(static=True)
+    growable: bool = eqx.field(static=True)
+
+    def __init__(self, fields, size=None, step=0, time=0.0, names=None, growable=None):
+        fields = jnp.asarray(fields)
+        if not jnp.issubdtype(fields.dtype, jnp.floating):
+            fields = fields.astype(default_float())
+        if fields.ndim != 3:
+            raise ValueError(f"State.fields must have shape (species, rows, cols) (got {fields.shape})")
+        self.fields = fields
+        self.size = jnp.asarray(fields.shape[1:] if size is None else size, dtype=jnp.int32)
+        self.step = jnp.asarray(step, dtype=jnp.int32)
+        self.time = jnp.asarray(time, dtype=fields.dtype)
+        if names is None:
+            names = tuple(_DEFAULT_NAMES[: fields.shape[0]])
+        self.names = tuple(names)
+        if growable is None:
+            growable = size is not None and tuple(np.asarray(size).tolist()) != tuple(fields.shape[1:]) if is_concrete(size) else True
+        self.growable = bool(growable)
+
+    def __check_init__(self):
+        if len(self.names) != self.fields.shape[-3]:
+            raise ValueError(f"State.names has {len(self.names)} entries for {self.fields.shape[-3]} species")
+        if is_concrete(self.size) and self.size.ndim == 1:
+            size = np.asarray(self.size)
+            cap = self.fields.shape[-2:]
+            if (size < 1).any() or (size > np.asarray(cap)).any():
+                raise ValueError(f"State.size {tuple(size)} must lie between (1, 1) and the capacity {tuple(cap)}")
+
+    # ---- construction ---------------------------------------------------------------
+    @classmethod
+    def from_arrays(cls, arrays: Sequence, capacity=None, names=None, dtype=None) -> "State":
+        """A state from one 2D array per species (NumPy or JAX), all of the same shape.
+
+        `capacity` = (rows, cols) reserves room for growth; the arrays fill the top-left
+        corner and the rest is zero. `dtype` defaults to JAX's default float (float32, or
+        float64 with x64 enabled).
+        """
+        if isinstance(arrays, (np.ndarray, jax.Array)) and np.ndim(arrays) == 2:
+            arrays = [arrays]
+        arrays = list(arrays)
+        if not arrays:
+            raise ValueError("State.from_arrays needs at least one species array")
+        dtype = default_float() if dtype is None else dtype
+        mats = []
+        for i, arr in enumerate(arrays):
+            arr = jnp.asarray(arr, dtype=dtype)
+            if arr.ndim != 2:
+                raise ValueError(f"State.from_arrays: species {i} must be a 2D array (got shape {arr.shape})")
+            mats.append(arr)
+        shapes = {m.shape for m in mats}
+        if len(shapes) != 1:
+            raise ValueError(f"State.from_arrays: all species must have the same shape (got {sorted(shapes)})")
+        shape = mats[0].shape
+        if min(shape) < 1:
+            raise ValueError(f"State.from_arrays: the lattice must be at least 1x1 (got {shape})")
+        if is_concrete(mats):
+            for i, m in enumerate(mats):
+                if not np.isfinite(np.asarray(m)).all():
+                    raise ValueError(f"State.from_arrays: species {i} contains NaN or infinite values")
+        fields = jnp.stack(mats)
+        if capacity is not None:
+            capacity = tuple(int(c) for c in capacity)
+            if len(capacity) != 2 or capacity[0] < shape[0] or capacity[1] < shape[1]:
+                raise ValueError(
+                    f"State.from_arrays: capacity must be (rows, cols) at least the array shape {shape} (got {capacity})"
+                )
+            fields = jnp.zeros((len(mats),) + capacity, dtype).at[:, : shape[0], : shape[1]].set(fields)
+        return cls(fields, size=shape, names=names, growable=capacity is not None)
+
+    # ---- views ------------------------------------------------------------------------
+    @property
+    def n_species(self) -> int:
+        return self.fields.shape[-3]
+
+    @property
+    def capacity(self) -> tuple[int, int]:
+        return tuple(self.fields.shape[-2:])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The active lattice (rows, cols) as Python ints (concrete states only)."""
+        return tuple(int(v) for v in np.asarray(self.size).reshape(-1, 2)[0])
+
+    def arrays(self) -> list[np.ndarray]:
+        """One NumPy array per species, cropped to the active lattice."""
+        if self.fields.ndim != 3:
+            raise ValueError(
+                "arrays() needs a single state; this one is batched with leading axes "
+                f"{self.fields.shape[:-3]} (use frame(i) or index the fields)"
+            )
+        h, w = self.shape
+        data = np.asarray(self.fields)
+        return [data[i, :h, :w].copy() for i in range(self.n_species)]
+
+    def array(self, species) -> np.ndarray:
+        """One species (by name or index), cropped to the active lattice."""
+        return self.arrays()[self.index(species)]
+
+    def index(self, species) -> int:
+        if isinstance(species, (int, np.integer)):
+            if not 0 <= species < self.n_species:
+                raise ValueError(f"species index {species} out of range 0..{self.n_species - 1}")
+            return int(species)
+        if species not in self.names:
+            raise ValueError(f"unknown species {species!r}; this state has {', '.join(self.names)}")
+        return self.names.index(species)
+
+    def frame(self, i: int) -> "State":
+        """Element `i` of a state with a leading axis (snapshots from `rollout`, sweeps)."""
+        return jax.tree_util.tree_map(lambda x: x[i], self)
+
+    # ---- species bookkeeping between phases ----------------------------------------
+    def with_species(self, name: str, values=None, copy_of=None) -> "State":
+        """Append a species: a copy of an existing one (`copy_of`), a constant or an array."""
+        if name in self.names:
+            raise ValueError(f"species {name!r} already exists in this state ({', '.join(self.names)})")
+        if copy_of is not None:
+            new = self.fields[..., self.index(copy_of), :, :]
+        else:
+            values = 0.0 if values is None else values
+            new = jnp.zeros(self.fields.shape[-2:], self.fields.dtype)
+            arr = jnp.asarray(values, self.fields.dtype)
+            if arr.ndim == 0:
+                new = new.at[: self.shape[0], : self.shape[1]].set(arr)
+            else:
+                new = new.at[: arr.shape[0], : arr.shape[1]].set(arr)
+        fields = jnp.concatenate([self.fields, new[..., None, :, :]], axis=-3)
+        return State(fields, self.size, self.step, self.time, self.names + (name,), self.growable)
+
+    def select(self, names: Sequence) -> "State":
+        """Keep only the given species, in the given order."""
+        idx = [self.index(n) for n in names]
+        names = tuple(self.names[i] for i in idx)
+        return State(self.fields[..., jnp.asarray(idx), :, :], self.size, self.step, self.time, names, self.growable)
+
+    def rename(self, names: Sequence[str]) -> "State":
+        return State(self.fields, self.size, self.step, self.time, tuple(names), self.growable)
+
+    def with_capacity(self, capacity) -> "State":
+        """The same state with a different (larger) capacity for growth; reallocates."""
+        rows, cols = (int(c) for c in capacity)
+        h, w = self.shape
+        if rows < h or cols < w:
+            raise ValueError(f"capacity {capacity} is smaller than the active lattice {(h, w)}")
+        fields = jnp.zeros(self.fields.shape[:-2] + (rows, cols), self.fields.dtype)
+        fields = fields.at[..., :h, :w].set(self.fields[..., :h, :w])
+        return State(fields, self.size, self.step, self.time, self.names, growable=True)

@@ -1,0 +1,25 @@
+"""Shared fixtures: fixed keys and seeds, hypothesis settings for jit-compiled code."""
+
+import os
+
+import jax
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, settings
+
+# Compilation dominates the first call of a property; deadlines would only measure it.
+settings.register_profile(
+    "morphojax", deadline=None, max_examples=12, derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "morphojax"))
+
+
+@pytest.fixture
+def key():
+    return jax.random.key(1234)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20201)
