@@ -156,3 +156,23 @@ def montage(images: Sequence[Image.Image], ncols: int, *, row_labels=None, col_l
         i, j = divmod(k, ncols)
         canvas.paste(im, (left + pad + j * (w + pad), title_h + top + pad + i * (h + pad)))
     return canvas
+
+
+def melanin(b, c) -> np.ndarray:
+    """The leopard paper's pigmentation texture (Fig. 17 right) from B and C.
+
+    Low B and C map to 0.3, high C to 0.5 and high B to 1.0 (eumelanin over pheomelanin);
+    0 is white fur and 1 almost black. B and C are min-max normalised first.
+    """
+    bn, cn = normalise(b), normalise(c)
+    base = 0.3 + 0.2 * cn
+    return base + (1.0 - base) * bn
+
+
+def render_experiment(state, experiment, scale: int = 1) -> Image.Image:
+    """The final image of an experiment: its `show` species through its colour map, or the
+    leopard's melanin texture (grey: white fur = 0, black = 1) when show == "melanin"."""
+    if experiment.show == "melanin":
+        m = melanin(state.array("b"), state.array("c"))
+        return to_image(1.0 - m, cmap="gray", vmin=0.0, vmax=1.0, scale=scale)
+    return to_image(state.array(experiment.show), cmap=experiment.cmap, scale=scale)

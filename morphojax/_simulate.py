@@ -150,8 +150,11 @@ def _chunk(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
     return c1._replace(bad=jnp.where(needed, where, c1.bad))
 
 
-def _crop_state(c: _Carry, names, t0, step0, dt, growable) -> State:
-    return State(c.p[..., 1:-1, 1:-1], c.size, c.step, t0 + (c.step - step0) * dt, names, growable)
+def _crop_state(c: _Carry, names, t0, step0, dt, growable, dynamic: bool) -> State:
+    fields = c.p[..., 1:-1, 1:-1]
+    if dynamic:  # drop the ghost cells written after the active region
+        fields = jnp.where(active_mask(fields.shape[-2:], c.size), fields, 0.0)
+    return State(fields, c.size, c.step, t0 + (c.step - step0) * dt, names, growable)
 
 
 @eqx.filter_jit
@@ -168,7 +171,7 @@ def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sourc
         if n_full:
             def body(c, _):
                 c = _chunk(step, c, per, checkpoint)
-                y = None if save_every is None else save_fn(_crop_state(c, names, time0, step0, dt, growable))
+                y = None if save_every is None else save_fn(_crop_state(c, names, time0, step0, dt, growable, cfg.dynamic))
                 return c, y
 
             c, ys = jax.lax.scan(body, c, None, length=n_full)
@@ -178,7 +181,7 @@ def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sourc
 
     per = save_every if save_every is not None else chunk
     c, frames = chunked(c, steps, max(1, min(per, steps)) if steps else 1)
-    final = _crop_state(c, names, time0, step0, dt, growable)
+    final = _crop_state(c, names, time0, step0, dt, growable, cfg.dynamic)
     return final, c.bad, c.overflow, frames
 
 
@@ -246,7 +249,7 @@ def _named_leaves(model):
     return [(f"{type(model).__name__}.{k}", v) for k, v in params.items()]
 
 
-def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt):
+def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt, origin=None):
     cfg = _Config(
         boundary=normalise_boundary(boundary),
         stencil=normalise_stencil(stencil),
@@ -263,9 +266,8 @@ def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources
                 "this state has no room to grow: build it with State.from_arrays(..., capacity=(rows, cols)) "
                 "or use state.with_capacity((rows, cols))"
             )
-        growth.check_capacity(state, steps, dt)
-    for s in sources:
-        s.check(state)
+        growth.check_capacity(state, steps, dt, origin)
+    sources = tuple(s.check(state) for s in sources)
     dt = as_float_array(dt, "dt").astype(state.fields.dtype)
     return cfg, dt, sources
 
@@ -365,7 +367,8 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str =
     Returns:
         The new `State`, with `step` and `time` advanced.
     """
-    cfg, dt, sources = _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt)
+    cfg, dt, sources = _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt,
+                                origin)
     final, bad, overflow, _ = _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoint,
                                      progress, None, None, type(model).__name__)
     return _finish(final, bad, overflow, throw)
@@ -394,7 +397,7 @@ def rollout(model: AbstractModel, state: State, steps: int, dt, every: int, boun
                 progress=False, checkpoint=None, origin=None)
     opts.update(kwargs)
     cfg, dt, sources = _prepare(model, state, steps, dt, boundary, opts["stencil"], opts["bounds"], opts["growth"],
-                                opts["sources"], opts["key"], opts["check_dt"])
+                                opts["sources"], opts["key"], opts["check_dt"], opts["origin"])
     final, bad, overflow, frames = _drive(
         model, state, steps, dt, cfg, opts["growth"], sources, opts["key"], opts["origin"], opts["checkpoint"],
         opts["progress"], int(every), save or _save_state, type(model).__name__,
@@ -412,7 +415,7 @@ def run_status(model, state, steps, dt, boundary="wrap", **kwargs):
                 checkpoint=None, origin=None)
     opts.update(kwargs)
     cfg, dt, sources = _prepare(model, state, steps, dt, boundary, opts["stencil"], opts["bounds"], opts["growth"],
-                                opts["sources"], opts["key"], opts["check_dt"])
+                                opts["sources"], opts["key"], opts["check_dt"], opts["origin"])
     final, bad, overflow, _ = _drive(model, state, steps, dt, cfg, opts["growth"], sources, opts["key"],
                                      opts["origin"], opts["checkpoint"], False, None, None, "")
     return final, bad, overflow

@@ -1,0 +1,328 @@
+"""Multi-phase experiments as plain data, run, checkpointed and resumed.
+
+An `Experiment` is an initial state (`Initial`) and a sequence of `Phase`s, each with its
+model, dt, steps, boundary, growth and sources; the final state of one phase is the
+initial state of the next, and species can be added (the leopard's C starts as a copy
+of B) or dropped between phases. Everything converts to and from JSON, and is saved
+with every result, so a run can be reproduced or resumed from its `.npz` checkpoint.
+
+Randomness: one root key per run (`seed`); the initial state uses fold_in(root, 0) and
+phase i uses fold_in(root, i + 1), whose per-step keys are fold_in(phase key, step).
+A resumed run therefore draws exactly the numbers the uninterrupted run would have.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from . import _initial
+from ._io import from_jsonable, load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
+from ._models import AbstractModel
+from ._simulate import Barrier, simulate
+from ._state import State
+from ._version import __version__
+
+
+@dataclasses.dataclass(frozen=True)
+class Initial:
+    """How the starting state is made.
+
+    kind: "paper" (A = 4, B ~ U[4, 5)), "thesis" (both ~ U[mean - dev, mean + dev), params
+    (dev, mean)), "constant" (params: one value per species), "uniform" (params: a value or
+    (low, high) per species), "gray-scott" (params: (square, noise)).
+    shape: (rows, cols); capacity: room to grow, or None for a fixed lattice.
+    """
+
+    kind: str
+    shape: tuple
+    capacity: tuple | None = None
+    params: tuple = ()
+    names: tuple | None = None
+
+    def build(self, key) -> State:
+        shape, cap = tuple(self.shape), (tuple(self.capacity) if self.capacity else None)
+        if self.kind == "paper":
+            return _initial.paper_state(key, shape, capacity=cap)
+        if self.kind == "thesis":
+            dev, mean = (tuple(self.params) + (2.0, 4.0)[len(self.params):])[:2]
+            return _initial.thesis_state(key, shape, dev=dev, mean=mean, capacity=cap)
+        if self.kind == "constant":
+            return _initial.constant_state(shape, *self.params, names=self.names, capacity=cap)
+        if self.kind == "uniform":
+            specs = [tuple(p) if isinstance(p, (list, tuple)) else p for p in self.params]
+            return _initial.random_state(key, shape, *specs, names=self.names, capacity=cap)
+        if self.kind == "gray-scott":
+            square, noise = (tuple(self.params) + (0.2, 0.02)[len(self.params):])[:2]
+            return _initial.gray_scott_state(key, shape, square=square, noise=noise, capacity=cap)
+        raise ValueError(f"unknown initial kind {self.kind!r}; allowed: paper, thesis, constant, uniform, gray-scott")
+
+    def to_dict(self):
+        return to_jsonable(dataclasses.asdict(self))
+
+    @classmethod
+    def from_dict(cls, d):
+        d = from_jsonable(dict(d))
+        return cls(kind=d["kind"], shape=tuple(d["shape"]), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+                   params=tuple(tuple(p) if isinstance(p, list) else p for p in d.get("params", ())),
+                   names=tuple(d["names"]) if d.get("names") else None)
+
+
+@dataclasses.dataclass(frozen=True)
+class Phase:
+    """One stage of an experiment (model parameters fixed within it).
+
+    add_species: species added before the phase, as (name, source) pairs where source is
+        the name of an existing species to copy or a constant.
+    keep: species kept (in this order) before the phase, after additions; None keeps all.
+    frames: snapshots to save during the phase (for `--frames`): a number of evenly spaced
+        ones, or a tuple of the phase steps after which to take them.
+    capacity: reallocate the state to this (rows, cols) capacity before the phase, so a
+        static phase runs on its own small lattice and only growing phases carry room.
+    """
+
+    model: AbstractModel
+    steps: int
+    dt: float
+    boundary: str = "wrap"
+    stencil: str = "nine-point"
+    bounds: Any = "clip"
+    growth: Any = None
+    sources: tuple = ()
+    add_species: tuple = ()
+    keep: tuple | None = None
+    frames: Any = 0
+    name: str = ""
+    capacity: tuple | None = None
+
+    def prepare(self, state: State) -> State:
+        """Apply the changes that happen at the start of the phase: reallocation to
+        `capacity` (outside compiled code), then species additions and selection."""
+        if self.capacity is not None and tuple(self.capacity) != tuple(state.capacity):
+            state = state.with_capacity(self.capacity)
+        for name, source in self.add_species:
+            if isinstance(source, str):
+                state = state.with_species(name, copy_of=source)
+            else:
+                state = state.with_species(name, values=source)
+        if self.keep is not None:
+            state = state.select(self.keep)
+        return state
+
+    def to_dict(self):
+        from ._growth import growth_to_dict, source_to_dict
+
+        bounds = self.bounds if isinstance(self.bounds, str) else {"barrier": self.bounds.k}
+        return to_jsonable({
+            "name": self.name, "model": model_to_dict(self.model), "steps": self.steps, "dt": self.dt,
+            "boundary": self.boundary, "stencil": self.stencil, "bounds": bounds,
+            "growth": growth_to_dict(self.growth) if self.growth is not None else None,
+            "sources": [source_to_dict(s) for s in self.sources],
+            "add_species": [list(p) for p in self.add_species],
+            "keep": list(self.keep) if self.keep is not None else None, "frames": self.frames,
+            "capacity": list(self.capacity) if self.capacity is not None else None,
+        })
+
+    @classmethod
+    def from_dict(cls, d):
+        from ._growth import growth_from_dict, source_from_dict
+
+        d = from_jsonable(dict(d))
+        bounds = d.get("bounds", "clip")
+        if isinstance(bounds, dict):
+            bounds = Barrier(int(bounds["barrier"]))
+        return cls(
+            model=model_from_dict(d["model"]), steps=int(d["steps"]), dt=float(d["dt"]),
+            boundary=d.get("boundary", "wrap"), stencil=d.get("stencil", "nine-point"), bounds=bounds,
+            growth=growth_from_dict(d["growth"]) if d.get("growth") else None,
+            sources=tuple(source_from_dict(s) for s in d.get("sources", [])),
+            add_species=tuple(tuple(p) for p in d.get("add_species", [])),
+            keep=tuple(d["keep"]) if d.get("keep") is not None else None,
+            frames=tuple(d["frames"]) if isinstance(d.get("frames"), list) else int(d.get("frames", 0)),
+            name=d.get("name", ""), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class Experiment:
+    """An initial state and a sequence of phases, with how to show the result.
+
+    show: the species to render, or "melanin" for the leopard's combined B/C texture.
+    """
+
+    name: str
+    initial: Initial
+    phases: tuple
+    description: str = ""
+    figure: str = ""
+    show: str = "b"
+    cmap: Any = "inferno"
+
+    @property
+    def total_steps(self) -> int:
+        return sum(p.steps for p in self.phases)
+
+    def to_dict(self):
+        cmap = self.cmap if isinstance(self.cmap, str) else [list(s) for s in self.cmap.stops]
+        return {"name": self.name, "description": self.description, "figure": self.figure, "show": self.show,
+                "cmap": to_jsonable(cmap), "initial": self.initial.to_dict(),
+                "phases": [p.to_dict() for p in self.phases]}
+
+    @classmethod
+    def from_dict(cls, d):
+        from ._render import Gradient
+
+        cmap = d.get("cmap", "inferno")
+        if isinstance(cmap, list):
+            cmap = Gradient([(p, tuple(c)) for p, c in cmap])
+        return cls(name=d["name"], initial=Initial.from_dict(d["initial"]),
+                   phases=tuple(Phase.from_dict(p) for p in d["phases"]), description=d.get("description", ""),
+                   figure=d.get("figure", ""), show=d.get("show", "b"), cmap=cmap)
+
+
+@dataclasses.dataclass
+class Result:
+    """What `run_experiment` returns: the final state, the experiment, snapshots and timings.
+
+    frames: list of (label, State) snapshots (when asked for), in order.
+    metadata: everything saved next to the arrays (seed, phase, steps, timings...).
+    """
+
+    state: State
+    experiment: Experiment
+    frames: list
+    metadata: dict
+
+    def image(self, scale: int = 1):
+        from ._render import render_experiment
+
+        return render_experiment(self.state, self.experiment, scale=scale)
+
+    def save(self, path) -> Path:
+        return save_npz(path, self.state, self.metadata)
+
+
+def _keys(seed: int):
+    root = jax.random.key(int(seed))
+    return root, (lambda i: jax.random.fold_in(root, i))
+
+
+def run_experiment(experiment: Experiment, seed: int = 0, *, frames: bool = False, progress: bool = False,
+                   checkpoint_path=None, checkpoint_every: int | None = None, resume=None,
+                   stop_after: int | None = None) -> Result:
+    """Run every phase of `experiment` from its initial state (or resume a checkpoint).
+
+    Args:
+        seed: the run's random seed; the same seed gives the same result.
+        frames: keep each phase's snapshots (`Phase.frames` of them) in `Result.frames`.
+        progress: progress bars (per phase).
+        checkpoint_path / checkpoint_every: write an `.npz` checkpoint every N steps (and at
+            phase ends) that `resume` accepts.
+        resume: a checkpoint path (or (State, metadata) from `load_npz`) to continue from; the
+            result equals that of an uninterrupted run with the same seed.
+        stop_after: stop after this many steps in total (for tests of resuming).
+    """
+    _, key_for = _keys(seed)
+    start_phase, phase_step, origin = 0, 0, None
+    if resume is not None:
+        state, meta = load_npz(resume) if not isinstance(resume, tuple) else resume
+        run = meta.get("run", {})
+        if int(run.get("seed", seed)) != int(seed):
+            seed = int(run["seed"])
+            _, key_for = _keys(seed)
+        start_phase, phase_step = int(run.get("phase", 0)), int(run.get("phase_step", 0))
+        origin = run.get("phase_origin")
+    else:
+        state = experiment.initial.build(key_for(0))
+    snapshots: list = []
+    timings = []
+    done_total = 0
+    t_start = time.perf_counter()
+    for i in range(start_phase, len(experiment.phases)):
+        phase = experiment.phases[i]
+        if phase_step == 0:
+            state = phase.prepare(state)
+            origin = int(state.step)
+        key = key_for(i + 1)
+        remaining = phase.steps - phase_step
+        piece = remaining if not checkpoint_every else int(checkpoint_every)
+        t0 = time.perf_counter()
+        while remaining > 0:
+            n = min(piece, remaining)
+            if stop_after is not None:
+                n = min(n, stop_after - done_total)
+                if n <= 0:
+                    break
+            kwargs = dict(boundary=phase.boundary, stencil=phase.stencil, bounds=phase.bounds, growth=phase.growth,
+                          sources=phase.sources, key=key, origin=origin, progress=progress)
+            if frames and phase.frames:
+                # stop at every requested snapshot inside this piece (splitting a run does
+                # not change its result)
+                marks = [m for m in _frame_steps(phase) if phase_step < m <= phase_step + n]
+                done_here = 0
+                for m in marks:
+                    state = simulate(phase.model, state, m - phase_step - done_here, phase.dt, **kwargs)
+                    done_here = m - phase_step
+                    snapshots.append((f"{phase.name or f'phase {i + 1}'} step {m}", state))
+                state = simulate(phase.model, state, n - done_here, phase.dt, **kwargs)
+            else:
+                state = simulate(phase.model, state, n, phase.dt, **kwargs)
+            phase_step += n
+            remaining -= n
+            done_total += n
+            if checkpoint_path is not None:
+                at_end = remaining == 0
+                _write(checkpoint_path, state, experiment, seed, i + 1 if at_end else i, 0 if at_end else phase_step,
+                       origin, timings)
+        timings.append({"phase": phase.name or str(i + 1), "steps": phase.steps - (phase.steps - phase_step),
+                        "seconds": time.perf_counter() - t0})
+        if stop_after is not None and done_total >= stop_after and remaining > 0:
+            meta = _meta(experiment, seed, i, phase_step, origin, timings)
+            return Result(state, experiment, snapshots, meta)
+        phase_step = 0
+    meta = _meta(experiment, seed, len(experiment.phases), 0, origin, timings)
+    meta["run"]["seconds"] = time.perf_counter() - t_start
+    return Result(state, experiment, snapshots, meta)
+
+
+def _frame_steps(phase: Phase) -> list[int]:
+    """The phase steps after which snapshots are taken."""
+    if isinstance(phase.frames, (tuple, list)):
+        return sorted(int(m) for m in phase.frames if 0 < int(m) <= phase.steps)
+    if phase.frames <= 0 or phase.steps <= 0:
+        return []
+    every = max(1, phase.steps // int(phase.frames))
+    return list(range(every, phase.steps + 1, every))
+
+
+def _meta(experiment, seed, phase, phase_step, origin, timings):
+    return {
+        "morphojax": __version__,
+        "experiment": experiment.to_dict(),
+        "run": {"seed": int(seed), "phase": int(phase), "phase_step": int(phase_step),
+                "phase_origin": None if origin is None else int(origin), "timings": timings},
+    }
+
+
+def _write(path, state, experiment, seed, phase, phase_step, origin, timings):
+    save_npz(path, state, _meta(experiment, seed, phase, phase_step, origin, timings))
+
+
+def load_experiment(meta: dict) -> Experiment:
+    """The experiment saved in a result's metadata."""
+    if "experiment" not in meta:
+        raise ValueError("this result file does not describe an experiment")
+    return Experiment.from_dict(meta["experiment"])
+
+
+def single_phase(name, model, initial: Initial, steps, dt, *, description="", figure="", show="b",
+                 cmap="inferno", frames=4, **phase_kwargs) -> Experiment:
+    """Shorthand for a one-phase experiment."""
+    phase = Phase(model=model, steps=int(steps), dt=float(dt), frames=frames, name=name, **phase_kwargs)
+    return Experiment(name=name, initial=initial, phases=(phase,), description=description, figure=figure,
+                      show=show, cmap=cmap)

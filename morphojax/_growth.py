@@ -1,0 +1,369 @@
+"""Tissue growth by random matrix expansion on a fixed-capacity lattice, and sources.
+
+One expansion (leopard paper section 4): first a new row, where every column draws its
+own dividing row r; that cell is duplicated and everything below it in the column moves
+down by one; then a new column the same way, every row drawing its dividing column. All
+species use the same dividing cells. The arrays keep their capacity shape throughout: the
+active (rows, cols) grows inside them, so the whole experiment phase is one compiled
+program with no Python loop over rows and no recompilation per size.
+
+Dividing indices follow a law over the current active range [0, n):
+"uniform"; "shuffle" (a random permutation of the n indices, reused cyclically, so every
+index divides once per pass: the paper's shuffling); "normal" (clipped normal around the
+middle, sd = spread * n); "triangular" (peak in the middle). `row_weights` / `col_weights`
+multiply the law by a profile over the relative position (0 = first row, 1 = last), e.g.
+the leopard's halved division probability in the middle rows.
+
+The control experiment of section 8.2 (`method="nearest" | "bilinear" | "bicubic"`)
+grows by image interpolation to (rows + 1, cols + 1) instead of cell division.
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from ._checks import as_float_array, check_choice, check_finite, check_range, is_concrete
+
+DISTRIBUTIONS = ("uniform", "shuffle", "normal", "triangular")
+METHODS = ("division", "nearest", "bilinear", "bicubic")
+
+
+class Growth(eqx.Module):
+    """A growth schedule: `rate` expansions per unit of simulated time.
+
+    An expansion happens every round(1 / (rate * dt)) steps of the phase, at the end of the
+    first step of each period (phase steps 1, 1 + p, 1 + 2p, ...), after that step's
+    reaction, diffusion and clamp; so N steps give ceil(N / p) expansions and the last one
+    has p - 1 steps of reaction-diffusion after it to absorb its division noise. Each
+    expansion adds one row and one column to the active lattice.
+
+    Args:
+        rate: expansions per unit time (time = steps x dt); 0 disables growth.
+        distribution: law of the dividing indices (see module docstring).
+        row_weights / col_weights: optional profiles (1D arrays) over relative position
+            multiplying the law; resampled to the current size by nearest neighbour.
+        spread: sd of the clipped normal as a fraction of the current size.
+        method: "division" (random matrix expansion) or an interpolation control:
+            "nearest", "bilinear", "bicubic".
+    """
+
+    rate: Array
+    row_weights: Array | None
+    col_weights: Array | None
+    distribution: str = eqx.field(static=True)
+    spread: float = eqx.field(static=True)
+    method: str = eqx.field(static=True)
+
+    def __init__(self, rate, distribution="uniform", row_weights=None, col_weights=None, spread=1.0 / 6.0,
+                 method="division"):
+        self.rate = as_float_array(rate, "Growth.rate")
+        check_choice(distribution, "growth distribution", DISTRIBUTIONS)
+        check_choice(method, "growth method", METHODS)
+        self.distribution = distribution
+        self.method = method
+        self.spread = float(spread)
+        self.row_weights = None if row_weights is None else _weights(row_weights, "Growth.row_weights")
+        self.col_weights = None if col_weights is None else _weights(col_weights, "Growth.col_weights")
+
+    def __check_init__(self):
+        check_finite(self.rate, "Growth.rate")
+        check_range(self.rate, "Growth.rate (expansions per unit time)", low=0.0)
+        if not self.spread > 0:
+            raise ValueError(f"Growth.spread must be > 0 (got {self.spread})")
+        if self.distribution == "shuffle" and (self.row_weights is not None or self.col_weights is not None):
+            raise ValueError("Growth: row_weights/col_weights cannot be combined with distribution='shuffle'")
+
+    # ---- schedule ------------------------------------------------------------------
+    def period(self, dt):
+        """Steps between expansions, round(1 / (rate dt)) (0 when the rate is 0)."""
+        rate_dt = self.rate * dt
+        return jnp.where(rate_dt > 0, jnp.maximum(jnp.round(1.0 / jnp.where(rate_dt > 0, rate_dt, 1.0)), 1), 0).astype(
+            jnp.int32)
+
+    def period_steps(self, dt) -> int:
+        """`period` for concrete values, computed in NumPy (usable while tracing)."""
+        dtype = np.asarray(self.rate).dtype  # same precision as the traced `period`
+        rate_dt = np.asarray(self.rate, dtype) * np.asarray(dt, dtype)
+        return max(int(np.round(dtype.type(1.0) / rate_dt)), 1) if rate_dt > 0 else 0
+
+    def expansions(self, steps: int, dt, done: int = 0) -> int:
+        """Number of expansions in phase steps done+1 .. done+steps (concrete values)."""
+        period = self.period_steps(dt)
+        if period == 0:
+            return 0
+        return -(-(done + steps) // period) - (-(-done // period))
+
+    def check_capacity(self, state, steps: int, dt, origin=None) -> None:
+        """Raise before the run if the state cannot hold all the expansions it will get."""
+        if not is_concrete(self.rate, dt, state.size, state.step):
+            return
+        done = int(state.step) - (int(state.step) if origin is None else int(origin))
+        n = self.expansions(steps, dt, done)
+        h, w = state.shape
+        cap = state.capacity
+        if h + n > cap[0] or w + n > cap[1]:
+            raise ValueError(
+                f"growth would take the lattice from {h}x{w} to {h + n}x{w + n} in {steps} steps "
+                f"({n} expansions, one every {self.period_steps(dt)} steps), beyond the capacity "
+                f"{cap[0]}x{cap[1]}; give the state a larger capacity (state.with_capacity)"
+            )
+
+    def maybe_expand(self, x, size, k, dt, key, overflow):
+        """Inside the step: expand when phase step `k` (1-based) opens a period."""
+        period = self.period(dt)
+        due = (period > 0) & ((k - 1) % jnp.maximum(period, 1) == 0)
+        room = (size[0] < x.shape[-2]) & (size[1] < x.shape[-1])
+        do = due & room
+
+        def grow(args):
+            x, size = args
+            return self.expand(x, size, key)
+
+        x, size = jax.lax.cond(do, grow, lambda a: a, (x, size))
+        return x, size, overflow | (due & ~room)
+
+    # ---- one expansion -----------------------------------------------------------------
+    def expand(self, x, size, key):
+        """One expansion of the active region: a new row, then a new column."""
+        if self.method != "division":
+            return _interpolate(x, size, self.method)
+        kr, kc = jax.random.split(key)
+        h, w = size[0], size[1]
+        rows = self.draw(kr, h, x.shape[-1], x.shape[-2], self.row_weights)  # one dividing row per column
+        x = _insert(x, rows, axis=-2)
+        cols = self.draw(kc, w, x.shape[-2], x.shape[-1], self.col_weights)  # one dividing column per row
+        x = _insert(x, cols, axis=-1)
+        return x, size + 1
+
+    def draw(self, key, n, count: int, cap: int, weights=None):
+        """`count` dividing indices in [0, n) following the law; n (maybe traced) <= cap."""
+        n = jnp.asarray(n)
+        if self.distribution == "shuffle":
+            # a random permutation of 0..n-1 (random keys, the unused tail sorted last),
+            # used cyclically: every index divides once per pass
+            order = jnp.argsort(jnp.where(jnp.arange(cap) < n, jax.random.uniform(key, (cap,)), 2.0))
+            return order[jnp.arange(count) % n].astype(jnp.int32)
+        if weights is not None:
+            return _draw_weighted(key, n, count, self.pmf_profile(weights), cap)
+        nf = n.astype(jnp.float32)
+        if self.distribution == "uniform":
+            idx = jnp.floor(jax.random.uniform(key, (count,)) * nf)
+        elif self.distribution == "triangular":
+            u = jax.random.uniform(key, (2, count))
+            idx = jnp.floor((u[0] + u[1]) * 0.5 * nf)
+        else:  # clipped normal
+            z = jax.random.normal(key, (count,))
+            idx = jnp.round((nf - 1) / 2 + z * self.spread * nf)
+        return jnp.clip(idx, 0, nf - 1).astype(jnp.int32)
+
+    def pmf_profile(self, weights):
+        """The law times a weight profile, as a function of relative position in [0, 1)."""
+        dist, spread = self.distribution, self.spread
+
+        def profile(rel):  # rel = (i + 0.5) / n
+            if dist == "uniform":
+                base = jnp.ones_like(rel)
+            elif dist == "triangular":
+                base = 1.0 - jnp.abs(2.0 * rel - 1.0)
+            else:
+                base = jnp.exp(-0.5 * ((rel - 0.5) / spread) ** 2)
+            k = weights.shape[0]
+            idx = jnp.clip(jnp.floor(rel * k).astype(jnp.int32), 0, k - 1)
+            return base * weights[idx]
+
+        return profile
+
+    def law(self, n: int, weights=None) -> np.ndarray:
+        """The exact probability of each index 0..n-1 (NumPy), for tests and figures."""
+        i = np.arange(n)
+        if self.distribution in ("uniform", "shuffle") and weights is None:
+            return np.full(n, 1.0 / n)
+        if weights is not None:
+            p = np.asarray(self.pmf_profile(jnp.asarray(weights))(jnp.asarray((i + 0.5) / n)), float)
+            return p / p.sum()
+        if self.distribution == "triangular":
+            # floor(n (u1 + u2) / 2): density of s = (u1 + u2) / 2 is triangular on [0, 1]
+            def cdf(s):
+                s = np.clip(s, 0, 1)
+                return np.where(s < 0.5, 2 * s * s, 1 - 2 * (1 - s) ** 2)
+            return cdf((i + 1) / n) - cdf(i / n)
+        from math import erf
+
+        sd = self.spread * n
+        mu = (n - 1) / 2
+        phi = np.vectorize(lambda t: 0.5 * (1 + erf(t / math.sqrt(2))))
+        upper = np.where(i == n - 1, 1.0, phi((i + 0.5 - mu) / sd))
+        lower = np.where(i == 0, 0.0, phi((i - 0.5 - mu) / sd))
+        return upper - lower
+
+
+def _draw_weighted(key, n, count: int, profile, cap: int):
+    rel = (jnp.arange(cap) + 0.5) / n
+    p = jnp.where(jnp.arange(cap) < n, profile(rel), 0.0)
+    logits = jnp.where(p > 0, jnp.log(jnp.where(p > 0, p, 1.0)), -jnp.inf)
+    return jax.random.categorical(key, logits, shape=(count,)).astype(jnp.int32)
+
+
+def _weights(values, name):
+    arr = as_float_array(values, name)
+    if arr.ndim != 1 or arr.shape[0] < 1:
+        raise ValueError(f"{name} must be a 1D profile of weights (got shape {arr.shape})")
+    check_finite(arr, name)
+    check_range(arr, name, low=0.0)
+    if is_concrete(arr) and not float(jnp.max(arr)) > 0:
+        raise ValueError(f"{name} must have at least one positive weight")
+    return arr
+
+
+def _insert(x, idx, axis):
+    """Duplicate, in every line across `axis`, the cell at `idx[line]`; later cells shift by one."""
+    if axis == -2:  # idx has one entry per column
+        i = jnp.arange(x.shape[-2])[:, None]
+        src = i - (i > idx[None, :])
+        return jnp.take_along_axis(x, jnp.broadcast_to(src, x.shape), axis=-2)
+    j = jnp.arange(x.shape[-1])[None, :]
+    src = j - (j > idx[:, None])
+    return jnp.take_along_axis(x, jnp.broadcast_to(src, x.shape), axis=-1)
+
+
+def _interpolate(x, size, method):
+    """Resample the active (h, w) region to (h + 1, w + 1): the section 8.2 control."""
+    h, w = size[0], size[1]
+    x = _resample_axis(x, h, -2, method)
+    x = _resample_axis(x, w, -1, method)
+    return x, size + 1
+
+
+def _resample_axis(x, n, axis, method):
+    """Resample along `axis` from n to n + 1 samples (align-corners off, edge clamped)."""
+    length = x.shape[axis]
+    i = jnp.arange(length, dtype=x.dtype)
+    nf = n.astype(x.dtype)
+    pos = (i + 0.5) * nf / (nf + 1.0) - 0.5  # source coordinate of each new cell
+    last = n - 1
+
+    def take(k):
+        k = jnp.clip(k, 0, last)
+        shape = [1] * x.ndim
+        shape[axis] = length
+        return jnp.take_along_axis(x, jnp.broadcast_to(k.reshape(shape), x.shape), axis=axis)
+
+    def along(v):
+        shape = [1] * x.ndim
+        shape[axis] = length
+        return v.reshape(shape)
+
+    if method == "nearest":
+        out = take(jnp.round(pos).astype(jnp.int32))
+    elif method == "bilinear":
+        f = jnp.floor(pos)
+        t = along(pos - f)
+        k = f.astype(jnp.int32)
+        out = (1 - t) * take(k) + t * take(k + 1)
+    else:  # bicubic, Keys kernel with a = -0.5
+        f = jnp.floor(pos)
+        t = pos - f
+        k = f.astype(jnp.int32)
+        out = 0.0
+        for off in (-1, 0, 1, 2):
+            out = out + along(_keys_kernel(t - off)) * take(k + off)
+    valid = along(i < nf + 1)
+    return jnp.where(valid, out, 0.0)
+
+
+def _keys_kernel(s, a=-0.5):
+    s = jnp.abs(s)
+    return jnp.where(s <= 1, (a + 2) * s**3 - (a + 3) * s**2 + 1,
+                     jnp.where(s < 2, a * s**3 - 5 * a * s**2 + 8 * a * s - 4 * a, 0.0))
+
+
+# ---- localised production ------------------------------------------------------------
+REGIONS = ("all", "center-row", "top-row", "bottom-row", "center-col")
+
+
+class Source(eqx.Module):
+    """Localised production: each step add U[0, amplitude) of `species` on a region.
+
+    region: "center-row" (the neural crest of the squirrel and leopard experiments, the
+    middle row of the *active* lattice, so it follows growth), "top-row", "bottom-row",
+    "center-col", "all", or a boolean/weight mask of the state's capacity shape.
+    Production is added after the reaction-diffusion update and before the clamp.
+    """
+
+    amplitude: Array
+    mask: Array | None
+    species: str | int = eqx.field(static=True)
+    region: str = eqx.field(static=True)
+    index: int = eqx.field(static=True)
+
+    def __init__(self, species, amplitude, region="center-row", *, index=-1):
+        self.species = species
+        self.amplitude = as_float_array(amplitude, "Source.amplitude")
+        if isinstance(region, str):
+            check_choice(region, "source region", REGIONS)
+            self.region = region
+            self.mask = None
+        else:
+            self.region = "mask"
+            self.mask = as_float_array(region, "Source.region (mask)")
+        self.index = int(index)
+
+    def __check_init__(self):
+        check_finite(self.amplitude, "Source.amplitude")
+        check_range(self.amplitude, "Source.amplitude", low=0.0)
+
+    def check(self, state):
+        idx = state.index(self.species)
+        if self.mask is not None and self.mask.shape != tuple(state.capacity):
+            raise ValueError(f"Source mask has shape {self.mask.shape}; it must match the capacity {state.capacity}")
+        return Source(self.species, self.amplitude, self.region if self.mask is None else self.mask, index=idx)
+
+    def apply(self, x, size, key):
+        rows, cols = x.shape[-2:]
+        noise = jax.random.uniform(key, (rows, cols), x.dtype) * self.amplitude
+        r = jnp.arange(rows)[:, None]
+        c = jnp.arange(cols)[None, :]
+        if self.region == "mask":
+            weight = self.mask
+        elif self.region == "all":
+            weight = ((r < size[0]) & (c < size[1])).astype(x.dtype)
+        elif self.region == "center-row":
+            weight = ((r == size[0] // 2) & (c < size[1])).astype(x.dtype)
+        elif self.region == "top-row":
+            weight = ((r == 0) & (c < size[1])).astype(x.dtype)
+        elif self.region == "bottom-row":
+            weight = ((r == size[0] - 1) & (c < size[1])).astype(x.dtype)
+        else:
+            weight = ((c == size[1] // 2) & (r < size[0])).astype(x.dtype)
+        return x.at[self.index].add(noise * weight)
+
+
+def growth_to_dict(g: Growth) -> dict:
+    from ._io import to_jsonable
+
+    return to_jsonable({"rate": g.rate, "distribution": g.distribution, "row_weights": g.row_weights,
+                        "col_weights": g.col_weights, "spread": g.spread, "method": g.method})
+
+
+def growth_from_dict(d: dict) -> Growth:
+    return Growth(rate=d["rate"], distribution=d.get("distribution", "uniform"),
+                  row_weights=d.get("row_weights"), col_weights=d.get("col_weights"),
+                  spread=d.get("spread", 1.0 / 6.0), method=d.get("method", "division"))
+
+
+def source_to_dict(s: Source) -> dict:
+    from ._io import to_jsonable
+
+    return to_jsonable({"species": s.species, "amplitude": s.amplitude,
+                        "region": s.region if s.mask is None else s.mask})
+
+
+def source_from_dict(d: dict) -> Source:
+    region = d.get("region", "center-row")
+    return Source(d["species"], d["amplitude"], region if isinstance(region, str) else np.asarray(region))

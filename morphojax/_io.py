@@ -1,0 +1,113 @@
+"""Plain-data conversion of models and states, and `.npz` result files.
+
+Every result morphojax writes carries what is needed to reproduce or resume it: the
+species arrays (cropped to the active lattice) plus a JSON `metadata` entry with the
+model parameters, the run configuration, the key/seed and the step counter.
+JSON here is strict: infinities are written as the strings "inf" / "-inf".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ._models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
+from ._state import State
+
+MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement)}
+
+
+def to_jsonable(value):
+    """Arrays and numbers to JSON-safe Python (lists, floats, 'inf' strings)."""
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(v) for v in value]
+    if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
+        return to_jsonable(np.asarray(value).tolist())
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.floating,)):
+        return to_jsonable(float(value))
+    return value
+
+
+def from_jsonable(value):
+    """Inverse of `to_jsonable` for numbers: 'inf', '-inf', 'nan' strings back to floats."""
+    if isinstance(value, dict):
+        return {k: from_jsonable(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [from_jsonable(v) for v in value]
+    if value in ("inf", "-inf", "nan"):
+        return float(value)
+    return value
+
+
+def dumps(obj, **kwargs) -> str:
+    return json.dumps(to_jsonable(obj), allow_nan=False, **kwargs)
+
+
+def model_to_dict(model: AbstractModel) -> dict:
+    """A model as plain data: {"type": "Turing", "params": {...}} (composites nest)."""
+    if isinstance(model, Composite):
+        return {"type": "Composite", "species": list(model.species), "parts": [model_to_dict(p) for p in model.parts]}
+    params = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    return {"type": type(model).__name__, "params": to_jsonable(params)}
+
+
+def model_from_dict(data: dict) -> AbstractModel:
+    kind = data.get("type")
+    if kind == "Composite":
+        return Composite([model_from_dict(p) for p in data["parts"]], species=data.get("species"))
+    if kind not in MODEL_TYPES:
+        raise ValueError(f"unknown model type {kind!r} in saved data; allowed: {', '.join(MODEL_TYPES)}, Composite")
+    params = from_jsonable(dict(data["params"]))
+    for lim in ("lower", "upper"):
+        if lim in params:
+            params[lim] = tuple(np.asarray(v, float) for v in params[lim])
+    params = {k: (np.asarray(v, float) if isinstance(v, list) else v) for k, v in params.items()}
+    return MODEL_TYPES[kind](**params)
+
+
+def save_npz(path, state: State, metadata: dict) -> Path:
+    """Write the species arrays (cropped, by name) and JSON metadata to `path`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays = {f"species_{n}": a for n, a in zip(state.names, state.arrays())}
+    meta = dict(metadata)
+    meta.setdefault("species", list(state.names))
+    meta.setdefault("step", int(state.step))
+    meta.setdefault("time", float(state.time))
+    meta.setdefault("size", list(state.shape))
+    meta.setdefault("capacity", list(state.capacity))
+    meta.setdefault("dtype", str(state.fields.dtype))
+    np.savez_compressed(path, metadata=np.asarray(dumps(meta)), **arrays)
+    return path
+
+
+def load_npz(path) -> tuple[State, dict]:
+    """Read a result written by `save_npz`: (State with its capacity, step and time; metadata)."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"no such result file: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = from_jsonable(json.loads(str(data["metadata"])))
+            arrays = [data[f"species_{n}"] for n in meta["species"]]
+    except (KeyError, OSError, ValueError, json.JSONDecodeError) as err:
+        raise ValueError(f"{path} is not a morphojax result file ({err})") from err
+    capacity = tuple(meta.get("capacity") or arrays[0].shape)
+    grows = capacity != tuple(arrays[0].shape)
+    state = State.from_arrays(arrays, capacity=capacity if grows else None, names=meta["species"])
+    state = State(state.fields, state.size, meta.get("step", 0), meta.get("time", 0.0), state.names,
+                  growable=state.growable)
+    return state, meta

@@ -1,0 +1,204 @@
+"""Growth by random matrix expansion, sources and multi-phase experiments."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import morphojax as mj
+from morphojax._growth import _insert
+
+FROZEN = mj.Bard(sp=0.0, da=0.0, db=0.0, lower=-np.inf)  # no reaction, no diffusion, no clamp
+
+
+def _distinct(shape, capacity, seed=0):
+    rng = np.random.default_rng(seed)
+    vals = rng.permutation(2 * shape[0] * shape[1]).reshape(2, *shape).astype(np.float32)
+    return mj.State.from_arrays(list(vals), capacity=capacity)
+
+
+def _remove_one_adjacent_duplicate(line):
+    """The line with exactly one value duplicated next to itself, less that duplicate."""
+    same = np.flatnonzero(line[1:] == line[:-1])
+    assert len(same) == 1, f"expected exactly one adjacent duplicate, found {len(same)}"
+    return np.delete(line, same[0])
+
+
+def test_row_insertion_duplicates_exactly_one_cell_per_column():
+    x = jnp.asarray(np.random.default_rng(1).permutation(30).reshape(1, 5, 6).astype(np.float32))
+    x = jnp.pad(x, ((0, 0), (0, 1), (0, 0)))  # room for one more row
+    rows = jnp.array([0, 4, 2, 2, 1, 3])
+    y = np.asarray(_insert(x, rows, axis=-2))[0]
+    for j in range(6):
+        col = y[:6, j]
+        assert col[rows[j]] == col[rows[j] + 1]
+        np.testing.assert_array_equal(_remove_one_adjacent_duplicate(col), np.asarray(x)[0, :5, j])
+
+
+@pytest.mark.parametrize("distribution", ["uniform", "shuffle", "normal", "triangular"])
+def test_expansion_preserves_values(distribution):
+    """With reaction and diffusion off, one expansion inserts a row then a column by
+    duplicating one cell per column (then per row); all species divide alike."""
+    state = _distinct((7, 9), (8, 10))
+    out = mj.simulate(FROZEN, state, steps=1, dt=1.0, growth=mj.Growth(1.0, distribution), key=jax.random.key(3))
+    assert out.shape == (8, 10)
+    before = state.arrays()
+    after = out.arrays()
+    # undo the column insertion row by row, then the row insertion column by column
+    dup_cols = []
+    mid = []
+    for s in range(2):
+        rows = []
+        for i in range(8):
+            line = after[s][i]
+            same = np.flatnonzero(line[1:] == line[:-1])
+            assert len(same) == 1
+            if s == 0:
+                dup_cols.append(same[0])
+            else:
+                assert same[0] == dup_cols[i], "species must divide at the same cells"
+            rows.append(np.delete(line, same[0]))
+        mid.append(np.stack(rows))
+    for s in range(2):
+        for j in range(9):
+            np.testing.assert_array_equal(_remove_one_adjacent_duplicate(mid[s][:, j]), before[s][:, j])
+
+
+def test_final_size_counts_expansions():
+    state = mj.paper_state(jax.random.key(0), (10, 12), capacity=(40, 40))
+    growth = mj.Growth(rate=2.5)  # dt 0.004 -> one expansion every 100 steps
+    out = mj.simulate(mj.Turing(8.0, 3.0), state, steps=1234, dt=0.004, growth=growth, key=jax.random.key(1))
+    expected = -(-1234 // 100)
+    assert out.shape == (10 + expected, 12 + expected)
+    assert growth.expansions(1234, 0.004) == expected
+    # cells beyond the active region stay zero
+    fields = np.asarray(out.fields)
+    assert not fields[:, 10 + expected:, :].any() and not fields[:, :, 12 + expected:].any()
+
+
+def test_capacity_overflow_is_an_error_before_the_run():
+    state = mj.paper_state(jax.random.key(0), (10, 10), capacity=(15, 30))
+    with pytest.raises(ValueError, match=r"beyond the capacity 15x30"):
+        mj.simulate(mj.Turing(8.0, 3.0), state, steps=1000, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(1))
+    fixed = mj.paper_state(jax.random.key(0), (10, 10))
+    with pytest.raises(ValueError, match="no room to grow"):
+        mj.simulate(mj.Turing(8.0, 3.0), fixed, steps=10, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(1))
+    with pytest.raises(ValueError, match="key is required"):
+        mj.simulate(mj.Turing(8.0, 3.0), state, steps=10, dt=0.004, growth=mj.Growth(2.5))
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "no-flux"])
+def test_unused_capacity_does_not_leak(boundary):
+    """A state inside a larger capacity evolves exactly like the same state on its own lattice."""
+    small = mj.paper_state(jax.random.key(4), (13, 17))
+    roomy = mj.State.from_arrays(small.arrays(), capacity=(24, 31))
+    model = mj.Turing(12.0, 3.0, lower=(0.0, 3.0))
+    a = mj.simulate(model, small, steps=300, dt=0.008, boundary=boundary)
+    b = mj.simulate(model, roomy, steps=300, dt=0.008, boundary=boundary)
+    for x, y in zip(a.arrays(), b.arrays()):
+        np.testing.assert_allclose(x, y, rtol=1e-6, atol=1e-6)
+    assert not np.asarray(b.fields)[:, 13:, :].any()
+
+
+N_DRAWS = 4000
+
+
+@pytest.mark.parametrize(
+    "growth",
+    [mj.Growth(1.0, "uniform"), mj.Growth(1.0, "normal"), mj.Growth(1.0, "triangular"),
+     mj.Growth(1.0, "uniform", row_weights=np.array([1.0, 0.5, 1.0]))],
+    ids=["uniform", "normal", "triangular", "weighted"],
+)
+def test_index_histograms_match_their_law(growth):
+    """Chi-square goodness of fit of the dividing indices (fixed key) against the exact law."""
+    from scipy import stats
+
+    n = 30
+    draw = jax.jit(lambda k: growth.draw(k, jnp.int32(n), N_DRAWS, 64, growth.row_weights))
+    idx = np.asarray(draw(jax.random.key(7)))
+    assert idx.min() >= 0 and idx.max() < n
+    observed = np.bincount(idx, minlength=n)
+    expected = growth.law(n, growth.row_weights) * N_DRAWS
+    keep = expected > 0
+    assert observed[~keep].sum() == 0
+    _, p = stats.chisquare(observed[keep], expected[keep])
+    assert p > 1e-3, (observed, expected.round(1))
+    # and the test has power: the draws are far from a different law
+    other = mj.Growth(1.0, "triangular" if growth.distribution != "triangular" else "uniform")
+    _, p_other = stats.chisquare(observed[keep], other.law(n)[keep] / other.law(n)[keep].sum() * N_DRAWS)
+    if growth.row_weights is None:
+        assert p_other < 1e-6
+
+
+def test_shuffle_uses_every_index_once_per_pass():
+    growth = mj.Growth(1.0, "shuffle")
+    for n, count in [(30, 30), (12, 40), (40, 40)]:
+        idx = np.asarray(growth.draw(jax.random.key(n), jnp.int32(n), count, 48))
+        counts = np.bincount(idx, minlength=n)
+        assert counts.max() - counts.min() <= 1 and counts.sum() == count and idx.max() < n
+
+
+def test_weights_halve_the_middle_rows():
+    from morphojax._presets import leopard_row_weights
+
+    growth = mj.Growth(1.0, row_weights=leopard_row_weights())
+    law = growth.law(90, growth.row_weights)
+    assert law[45] == pytest.approx(0.5 * law[5])
+
+
+@pytest.mark.parametrize("method", ["nearest", "bilinear", "bicubic"])
+def test_interpolation_growth(method):
+    """Section 8.2's control: resample to (rows + 1, cols + 1); constants stay constant and a
+    linear ramp stays a ramp (within the ends) for the linear methods."""
+    ramp = np.add.outer(np.arange(9.0), 2 * np.arange(11.0)).astype(np.float32)
+    state = mj.State.from_arrays([np.full((9, 11), 3.0), ramp], capacity=(12, 14))
+    out = mj.simulate(FROZEN, state, steps=1, dt=1.0, growth=mj.Growth(1.0, method=method), key=jax.random.key(0))
+    a, b = out.arrays()
+    assert a.shape == (10, 12)
+    np.testing.assert_allclose(a, 3.0, atol=1e-5)
+    slack = 0.1 if method == "bicubic" else 1e-4  # cubic kernels overshoot slightly at the edges
+    assert b.min() >= ramp.min() - slack and b.max() <= ramp.max() + slack
+    if method != "nearest":
+        inner = b[2:-2, 2:-2]
+        np.testing.assert_allclose(np.diff(inner, 2, axis=1), 0.0, atol=1e-3)
+
+
+def test_sources_add_production_on_their_row_only():
+    state = mj.State.from_arrays([np.zeros((9, 7)), np.zeros((9, 7))], capacity=(9, 7))
+    src = mj.Source("b", 0.01, "center-row")
+    out = mj.simulate(FROZEN, state, steps=50, dt=1.0, sources=(src,), key=jax.random.key(2))
+    a, b = out.arrays()
+    assert not a.any()
+    assert not np.delete(b, 4, axis=0).any()
+    assert (b[4] > 0).all() and (b[4] < 50 * 0.01).all()
+    assert b[4].mean() == pytest.approx(50 * 0.005, rel=0.2)
+
+
+def test_growth_under_jit_vmap_and_grad():
+    state = mj.paper_state(jax.random.key(0), (12, 12), capacity=(20, 20))
+    growth = mj.Growth(2.5)
+
+    def run(ratio, key):
+        out = mj.simulate(mj.Turing(ratio, 3.0), state, steps=400, dt=0.004, growth=growth, key=key)
+        return out.fields, out.size
+
+    keys = jax.random.split(jax.random.key(5), 3)
+    fields, sizes = jax.jit(jax.vmap(run, in_axes=(None, 0)))(8.0, keys)
+    assert (np.asarray(sizes) == 16).all()
+    single, _ = run(8.0, keys[2])
+    np.testing.assert_allclose(np.asarray(fields[2]), np.asarray(single), rtol=1e-5, atol=1e-5)
+    assert not np.allclose(np.asarray(fields[0]), np.asarray(fields[1]))  # different keys, different divisions
+    grad = jax.grad(lambda r: jnp.mean(run(r, keys[0])[0][1] ** 2))(8.0)
+    assert np.isfinite(float(grad)) and float(grad) != 0.0
+
+
+def test_growth_compiles_once_per_phase():
+    """The whole growing run is one compiled program, whatever sizes it passes through."""
+    from morphojax import _simulate
+
+    state = mj.paper_state(jax.random.key(0), (10, 10), capacity=(30, 30))
+    mj.simulate(mj.Turing(8.0, 3.0), state, steps=900, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(1))
+    before = _simulate._integrate._cached._cache_size()
+    out = mj.simulate(mj.Turing(9.0, 2.0), state, steps=900, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(2))
+    assert out.shape == (19, 19)
+    assert _simulate._integrate._cached._cache_size() == before
