@@ -22,6 +22,7 @@ import jax
 import numpy as np
 
 from . import _initial
+from ._checks import is_concrete
 from ._io import from_jsonable, load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._models import AbstractModel
 from ._simulate import Barrier, simulate
@@ -247,7 +248,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, frames: bool = Fals
         phase = experiment.phases[i]
         if phase_step == 0:
             state = phase.prepare(state)
-            origin = int(state.step)
+            origin = int(state.step) if is_concrete(state.step) else state.step
         key = key_for(i + 1)
         remaining = phase.steps - phase_step
         piece = remaining if not checkpoint_every else int(checkpoint_every)
@@ -301,11 +302,14 @@ def _frame_steps(phase: Phase) -> list[int]:
 
 
 def _meta(experiment, seed, phase, phase_step, origin, timings):
+    # under jit/vmap/grad the parameters are tracers: there is nothing concrete to record
+    concrete = is_concrete([p.model for p in experiment.phases], [p.growth for p in experiment.phases])
     return {
         "morphojax": __version__,
-        "experiment": experiment.to_dict(),
+        "experiment": experiment.to_dict() if concrete else None,
         "run": {"seed": int(seed), "phase": int(phase), "phase_step": int(phase_step),
-                "phase_origin": None if origin is None else int(origin), "timings": timings},
+                "phase_origin": int(origin) if origin is not None and is_concrete(origin) else None,
+                "timings": timings},
     }
 
 

@@ -22,6 +22,7 @@ import math
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -64,7 +65,9 @@ def _check_limits(model) -> None:
     check_finite(model.lower, f"{type(model).__name__}.lower", allow_inf="-")
     check_finite(model.upper, f"{type(model).__name__}.upper", allow_inf="+")
     if is_concrete(model.lower, model.upper):
-        lo, hi = np.asarray(per_species(model.lower)), np.asarray(per_species(model.upper))
+        lower, upper = np.asarray(model.lower), np.asarray(model.upper)
+        lo = lower.reshape(lower.shape + (1, 1)) if lower.ndim == 1 else lower
+        hi = upper.reshape(upper.shape + (1, 1)) if upper.ndim == 1 else upper
         shape = np.broadcast_shapes(lo.shape, hi.shape)
         lo, hi = np.broadcast_to(lo, shape), np.broadcast_to(hi, shape)
         bad = (lo > hi).reshape(shape[0], -1)
@@ -144,8 +147,10 @@ class AbstractModel(eqx.Module):
         return tuple(f.name for f in dataclasses.fields(cls) if f.name not in ("lower", "upper") and not f.metadata.get("static"))
 
     def max_diffusion(self):
-        """Largest diffusion rate anywhere on the lattice (concrete values only)."""
-        return float(np.max(np.asarray(self.diffusion())))
+        """Largest diffusion rate anywhere on the lattice (concrete values only; evaluated
+        eagerly even while tracing, so the stability check also runs inside `jax.jit`)."""
+        with jax.ensure_compile_time_eval():
+            return float(np.max(np.asarray(self.diffusion())))
 
 
 def _as_tuple(values):

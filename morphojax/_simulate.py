@@ -194,6 +194,12 @@ def _default_chunk(steps: int, checkpoint) -> int:
 
 
 def _check_inputs(model, state, steps, dt, cfg, growth, check_dt, bounds):
+    # concrete values are checked eagerly, also while an outer jax.jit traces this call
+    with jax.ensure_compile_time_eval():
+        _check_inputs_eager(model, state, steps, dt, cfg, growth, check_dt, bounds)
+
+
+def _check_inputs_eager(model, state, steps, dt, cfg, growth, check_dt, bounds):
     if not isinstance(model, AbstractModel):
         raise ValueError(f"model must be a morphojax model such as Turing(...) (got {type(model).__name__})")
     if not isinstance(state, State):

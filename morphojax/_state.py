@@ -55,7 +55,12 @@ class State(eqx.Module):
             names = tuple(_DEFAULT_NAMES[: fields.shape[0]])
         self.names = tuple(names)
         if growable is None:
-            growable = size is not None and tuple(np.asarray(size).tolist()) != tuple(fields.shape[1:]) if is_concrete(size) else True
+            if size is None:
+                growable = False
+            elif is_concrete(size):
+                growable = tuple(np.asarray(size).tolist()) != tuple(fields.shape[1:])
+            else:
+                growable = True
         self.growable = bool(growable)
 
     def __check_init__(self):
@@ -159,11 +164,13 @@ class State(eqx.Module):
             new = self.fields[..., self.index(copy_of), :, :]
         else:
             values = 0.0 if values is None else values
-            new = jnp.zeros(self.fields.shape[-2:], self.fields.dtype)
             arr = jnp.asarray(values, self.fields.dtype)
-            if arr.ndim == 0:
-                new = new.at[: self.shape[0], : self.shape[1]].set(arr)
+            if arr.ndim == 0:  # a constant on the active region (works with a traced size)
+                rows = jnp.arange(self.fields.shape[-2])[:, None] < self.size[..., 0, None, None]
+                cols = jnp.arange(self.fields.shape[-1])[None, :] < self.size[..., 1, None, None]
+                new = jnp.where(rows & cols, arr, jnp.zeros((), self.fields.dtype))
             else:
+                new = jnp.zeros(self.fields.shape[-2:], self.fields.dtype)
                 new = new.at[: arr.shape[0], : arr.shape[1]].set(arr)
         fields = jnp.concatenate([self.fields, new[..., None, :, :]], axis=-3)
         return State(fields, self.size, self.step, self.time, self.names + (name,), self.growable)
@@ -180,9 +187,14 @@ class State(eqx.Module):
     def with_capacity(self, capacity) -> "State":
         """The same state with a different (larger) capacity for growth; reallocates."""
         rows, cols = (int(c) for c in capacity)
-        h, w = self.shape
-        if rows < h or cols < w:
-            raise ValueError(f"capacity {capacity} is smaller than the active lattice {(h, w)}")
+        old_rows, old_cols = self.fields.shape[-2:]
+        if is_concrete(self.size):
+            h, w = self.shape
+            if rows < h or cols < w:
+                raise ValueError(f"capacity {capacity} is smaller than the active lattice {(h, w)}")
+        # cells beyond the active region are zero, so copying the old block keeps the
+        # invariant without reading the (possibly traced) active size
+        keep_r, keep_c = min(rows, old_rows), min(cols, old_cols)
         fields = jnp.zeros(self.fields.shape[:-2] + (rows, cols), self.fields.dtype)
-        fields = fields.at[..., :h, :w].set(self.fields[..., :h, :w])
+        fields = fields.at[..., :keep_r, :keep_c].set(self.fields[..., :keep_r, :keep_c])
         return State(fields, self.size, self.step, self.time, self.names, growable=True)
