@@ -208,18 +208,17 @@ class Result:
         return save_npz(path, self.state, self.metadata)
 
 
-def _keys(seed: int):
-    root = jax.random.key(int(seed))
-    return root, (lambda i: jax.random.fold_in(root, i))
-
-
-def run_experiment(experiment: Experiment, seed: int = 0, *, frames: bool = False, progress: bool = False,
-                   checkpoint_path=None, checkpoint_every: int | None = None, resume=None,
-                   stop_after: int | None = None) -> Result:
+def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: bool = False,
+                   progress: bool = False, checkpoint_path=None, checkpoint_every: int | None = None, resume=None,
+                   stop_after: int | None = None, grad_window: int | None = None) -> Result:
     """Run every phase of `experiment` from its initial state (or resume a checkpoint).
+
+    Pure in (experiment, key) like `simulate`: usable under `jax.jit`, `jax.vmap` and
+    `jax.grad` (with frames, checkpoints and progress off).
 
     Args:
         seed: the run's random seed; the same seed gives the same result.
+        key: a `jax.random` key to use instead of `seed` (e.g. a traced key under vmap).
         frames: keep each phase's snapshots (`Phase.frames` of them) in `Result.frames`.
         progress: progress bars (per phase).
         checkpoint_path / checkpoint_every: write an `.npz` checkpoint every N steps (and at
@@ -227,65 +226,62 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, frames: bool = Fals
         resume: a checkpoint path (or (State, metadata) from `load_npz`) to continue from; the
             result equals that of an uninterrupted run with the same seed.
         stop_after: stop after this many steps in total (for tests of resuming).
+        grad_window: differentiate only through the last `grad_window` steps of the run; the
+            state before them is treated as a constant (truncated backpropagation, see the
+            fitting documentation for why long horizons need it).
     """
-    _, key_for = _keys(seed)
-    start_phase, phase_step, origin = 0, 0, None
     if resume is not None:
         state, meta = load_npz(resume) if not isinstance(resume, tuple) else resume
         run = meta.get("run", {})
-        if int(run.get("seed", seed)) != int(seed):
-            seed = int(run["seed"])
-            _, key_for = _keys(seed)
+        seed = int(run.get("seed", seed))
         start_phase, phase_step = int(run.get("phase", 0)), int(run.get("phase_step", 0))
         origin = run.get("phase_origin")
     else:
-        state = experiment.initial.build(key_for(0))
+        start_phase, phase_step, origin = 0, 0, None
+    root = jax.random.key(int(seed)) if key is None else key
+    if resume is None:
+        state = experiment.initial.build(jax.random.fold_in(root, 0))
+    steps_before = sum(p.steps for p in experiment.phases[:start_phase])
+    window_start = None if grad_window is None else max(0, experiment.total_steps - int(grad_window))
+    done_total = 0
     snapshots: list = []
     timings = []
-    done_total = 0
     t_start = time.perf_counter()
     for i in range(start_phase, len(experiment.phases)):
         phase = experiment.phases[i]
         if phase_step == 0:
             state = phase.prepare(state)
             origin = int(state.step) if is_concrete(state.step) else state.step
-        key = key_for(i + 1)
-        remaining = phase.steps - phase_step
-        piece = remaining if not checkpoint_every else int(checkpoint_every)
+        kwargs = dict(boundary=phase.boundary, stencil=phase.stencil, bounds=phase.bounds, growth=phase.growth,
+                      sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin, progress=progress)
+        marks = set(_frame_steps(phase)) if frames and phase.frames else set()
+        saves = set(range(phase_step + checkpoint_every, phase.steps, checkpoint_every)) if checkpoint_every else set()
+        cuts = {phase.steps} | marks | saves
+        if stop_after is not None:
+            cuts.add(phase_step + max(0, stop_after - done_total))
+        if window_start is not None and steps_before < window_start < steps_before + phase.steps:
+            cuts.add(window_start - steps_before)
         t0 = time.perf_counter()
-        while remaining > 0:
-            n = min(piece, remaining)
-            if stop_after is not None:
-                n = min(n, stop_after - done_total)
-                if n <= 0:
-                    break
-            kwargs = dict(boundary=phase.boundary, stencil=phase.stencil, bounds=phase.bounds, growth=phase.growth,
-                          sources=phase.sources, key=key, origin=origin, progress=progress)
-            if frames and phase.frames:
-                # stop at every requested snapshot inside this piece (splitting a run does
-                # not change its result)
-                marks = [m for m in _frame_steps(phase) if phase_step < m <= phase_step + n]
-                done_here = 0
-                for m in marks:
-                    state = simulate(phase.model, state, m - phase_step - done_here, phase.dt, **kwargs)
-                    done_here = m - phase_step
-                    snapshots.append((f"{phase.name or f'phase {i + 1}'} step {m}", state))
-                state = simulate(phase.model, state, n - done_here, phase.dt, **kwargs)
-            else:
-                state = simulate(phase.model, state, n, phase.dt, **kwargs)
-            phase_step += n
-            remaining -= n
-            done_total += n
-            if checkpoint_path is not None:
-                at_end = remaining == 0
-                _write(checkpoint_path, state, experiment, seed, i + 1 if at_end else i, 0 if at_end else phase_step,
+        for cut in sorted(c for c in cuts if phase_step < c <= phase.steps):
+            state = simulate(phase.model, state, cut - phase_step, phase.dt, **kwargs)
+            done_total += cut - phase_step
+            phase_step = cut
+            if window_start is not None and steps_before + cut <= window_start:
+                state = jax.lax.stop_gradient(state)
+            if cut in marks:
+                snapshots.append((f"{phase.name or f'phase {i + 1}'} step {cut}", state))
+            at_end = cut == phase.steps
+            if checkpoint_path is not None and (cut in saves or at_end):
+                _write(checkpoint_path, state, experiment, seed, i + 1 if at_end else i, 0 if at_end else cut,
                        origin, timings)
-        timings.append({"phase": phase.name or str(i + 1), "steps": phase.steps - (phase.steps - phase_step),
-                        "seconds": time.perf_counter() - t0})
-        if stop_after is not None and done_total >= stop_after and remaining > 0:
-            meta = _meta(experiment, seed, i, phase_step, origin, timings)
-            return Result(state, experiment, snapshots, meta)
+            if stop_after is not None and done_total >= stop_after and not at_end:
+                timings.append({"phase": phase.name or str(i + 1), "steps": cut, "seconds": time.perf_counter() - t0})
+                return Result(state, experiment, snapshots, _meta(experiment, seed, i, cut, origin, timings))
+        timings.append({"phase": phase.name or str(i + 1), "steps": phase.steps, "seconds": time.perf_counter() - t0})
+        steps_before += phase.steps
         phase_step = 0
+        if stop_after is not None and done_total >= stop_after and i + 1 < len(experiment.phases):
+            return Result(state, experiment, snapshots, _meta(experiment, seed, i + 1, 0, origin, timings))
     meta = _meta(experiment, seed, len(experiment.phases), 0, origin, timings)
     meta["run"]["seconds"] = time.perf_counter() - t_start
     return Result(state, experiment, snapshots, meta)
