@@ -1,0 +1,372 @@
+"""Fitting model parameters to a target texture: a global design, then local optimisers.
+
+1. Target statistics (`texture_stats` of the target field).
+2. Global stage: a coarse design (Latin hypercube or grid) over the parameter bounds,
+   evaluated as one vmapped batch (design points x seeds), keeping the best few.
+3. Noise: at the best design point the seed-to-seed spread of each statistic is measured,
+   so the loss is in units of simulation noise (a diagonal synthetic likelihood).
+4. Local stage from each kept point: an Optimistix solver on the unconstrained
+   reparameterisation (BFGS on the loss, Levenberg-Marquardt on the residual vector,
+   Nelder-Mead without gradients, or plain gradient descent), with gradients through the
+   simulation's last `window` steps (checkpointed, so memory does not grow with steps).
+   When gradients do not help (no improvement), Nelder-Mead takes over from the same start.
+5. The best point is re-simulated for the report: statistics of target and fit, the noise
+   floor (the distance expected between the target and the fit if the target were a sample
+   of the fitted model), region statistics, timings and the loss history.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from morphojax._models import AbstractModel, model_from_name
+from morphojax._experiment import Experiment
+
+from ._simulator import Simulator, fixed_tuple
+from ._space import ParamSpace
+from ._stats import StatsConfig, distance, mean_stats, noise_of, residuals, texture_stats
+from ._target import Target, load_target
+
+METHODS = ("bfgs", "lm", "nelder-mead", "gd")
+
+
+@dataclasses.dataclass
+class FitResult:
+    """Everything a fit found and how.
+
+    params: fitted values by name; model: the fitted model or experiment; loss: final loss
+    (in noise units); noise_floor: the loss expected if the target were a sample of the fitted
+    parameters; history: list of {stage, start, evaluation, loss}; timings: seconds per stage;
+    stats: target and fit statistics; report: region statistics (spot counts, areas,
+    eccentricity, Euler number); design: the global stage's points and losses; fields: the
+    target field and one simulated field of the fit, for previews.
+    """
+
+    params: dict
+    model: Any
+    loss: float
+    noise_floor: float
+    history: list
+    timings: dict
+    stats: dict
+    report: dict
+    design: list
+    fields: dict
+    config: dict
+    target: dict
+
+    def to_json(self) -> dict:
+        from morphojax._io import model_to_dict, to_jsonable
+
+        model = model_to_dict(self.model) if isinstance(self.model, AbstractModel) else self.model.to_dict()
+        return to_jsonable({
+            "params": self.params, "loss": self.loss, "noise_floor": self.noise_floor,
+            "loss_over_noise_floor": self.loss / self.noise_floor if self.noise_floor > 0 else None,
+            "model": model, "target": self.target, "config": self.config, "timings": self.timings,
+            "stats": self.stats, "report": self.report, "design": self.design, "history": self.history,
+        })
+
+    def save_json(self, path) -> Path:
+        from morphojax._io import dumps
+
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(dumps(self.to_json(), indent=1))
+        return path
+
+    def preview(self, path=None, scale: int | None = None):
+        from ._report import preview
+
+        img = preview(self, scale=scale)
+        if path is not None:
+            img.save(path)
+        return img
+
+
+def _as_template(model, shape):
+    if isinstance(model, str):
+        return model_from_name(model)
+    if isinstance(model, (AbstractModel, Experiment)):
+        return model
+    raise ValueError(f"model must be a model name, a model or an Experiment (got {type(model).__name__})")
+
+
+class _Recorder:
+    """Collects losses evaluated inside compiled solvers (through jax.debug.callback)."""
+
+    def __init__(self, bar=None):
+        self.rows = []
+        self.stage = ""
+        self.start = 0
+        self.bar = bar
+
+    def __call__(self, loss, z):
+        self.rows.append({"stage": self.stage, "start": self.start, "evaluation": len(self.rows),
+                          "loss": float(loss), "z": np.asarray(z).tolist()})
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix(loss=f"{float(loss):.3g}", stage=self.stage)
+
+
+def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=None, shape=(64, 64),
+        steps: int = 8000, window: int = 1000, seeds: int = 4, seed: int = 0, design: str = "lhs",
+        n_design: int = 24, rounds: int = 2, keep: int = 2, method: str = "bfgs", max_steps: int = 40, fallback: bool = True,
+        stats: StatsConfig = StatsConfig(), boundary: str = "wrap", species=None, batch_size: int = 8,
+        noise_seeds: int = 8, learning_rate: float = 0.05, length_scale: str | None = "scale",
+        progress: bool = False,
+        simulator: Simulator | None = None) -> FitResult:
+    """Fit parameters of `model` so its texture statistics match `target`'s.
+
+    Args:
+        target: a `Target` (see `load_target`), an image path, or a 2D array at lattice
+            resolution (normalised by its quantiles like a photo).
+        model: "turing", "bard", "gray-scott", "reinforcement", a model, or an `Experiment`
+            (growing and multi-phase runs; see `Simulator` for parameter names).
+        fit: names of the parameters to fit (e.g. ratio, scale, upper_a, lower_b).
+        fixed: parameters held at given values; bounds: {name: (low, high)} overriding the
+            defaults of `fitting.DEFAULT_BOUNDS`.
+        shape: simulated lattice (rows, cols); steps / window: steps per simulation and how
+            many of the last are differentiated.
+        seeds: simulations averaged per evaluation (vmapped); seed: the fit's random seed
+            (seeds, design).
+        design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
+            n_design points, then `rounds` Latin hypercubes of n_design points in boxes
+            (halving each round) around the best `keep`, which then start local searches.
+        method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
+            iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
+        stats: which statistics and how they are weighted.
+        length_scale: a fitted parameter that multiplies every diffusion rate (Turing's
+            `scale`); the global stage moves each design point along it to match the target's
+            dominant wavelength (None to disable).
+        progress: a progress bar over the evaluations.
+
+    Returns:
+        `FitResult` (see its docstring); `result.save_json(path)`, `result.preview(path)`.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
+    for name, value, low in (("seeds", seeds, 1), ("n_design", n_design, 1), ("keep", keep, 1),
+                             ("max_steps", max_steps, 0), ("batch_size", batch_size, 1)):
+        if int(value) < low:
+            raise ValueError(f"{name} must be an integer >= {low} (got {value!r})")
+    t_start = time.perf_counter()
+    timings = {}
+    if not isinstance(target, Target):  # a path, or an array already at lattice resolution
+        target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
+    template = _as_template(model, shape)
+    sim = simulator or Simulator(template, shape=tuple(shape), steps=int(steps), window=int(window),
+                                 species=species, boundary=boundary, fixed=fixed_tuple(fixed))
+    names = list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
+    sim.check_names(names + [k for k, _ in sim.fixed])
+    space = ParamSpace.build(names, bounds)
+    tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(target.field, jnp.float32), stats))
+    keys = jax.random.split(jax.random.key(seed + 1), seeds)
+
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(desc="fit", unit="eval")
+    rec = _Recorder(bar)
+
+    def stats_at(theta, ks):
+        params = space.as_dict(theta)
+        fields = jax.vmap(lambda k: sim.run(params, k))(ks)
+        return mean_stats(fields, stats)
+
+    # ---- global stage: a coarse design, then `rounds` finer designs around the best ------
+    t0 = time.perf_counter()
+
+    @eqx.filter_jit
+    def batch_loss(theta_batch):
+        def one(th):
+            st = stats_at(th, keys)
+            return distance(st, tstats, stats), st["wavelength"]
+
+        return jax.vmap(one)(theta_batch)
+
+    def run_batch(thetas):
+        pad = (-len(thetas)) % batch_size
+        padded = np.concatenate([thetas, np.repeat(thetas[-1:], pad, 0)]) if pad else thetas
+        out = [batch_loss(jnp.asarray(padded[i: i + batch_size], jnp.float32))
+               for i in range(0, len(padded), batch_size)]
+        vals = np.concatenate([np.asarray(o[0]) for o in out])[: len(thetas)]
+        lams = np.concatenate([np.asarray(o[1]) for o in out])[: len(thetas)]
+        return np.where(np.isfinite(vals), vals, np.inf), lams
+
+    length = names.index(length_scale) if length_scale in names else None
+
+    def evaluate(unit_points):
+        """Losses at the points; with a length-scale parameter, each point is first moved
+        along it to the value whose dominant wavelength matches the target's (the pattern's
+        size grows as the square root of a length scale of the diffusion rates)."""
+        thetas = np.asarray(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
+        vals, lams = run_batch(thetas)
+        if length is not None:
+            factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** 2
+            moved = thetas.copy()
+            moved[:, length] = np.clip(np.nan_to_num(thetas[:, length] * factor, nan=thetas[:, length]),
+                                       space.low[length], space.high[length])
+            for value, theta in zip(vals, thetas):
+                rec(value, space.to_free(theta))
+            vals2, _ = run_batch(moved)
+            better = vals2 < vals
+            thetas = np.where(better[:, None], moved, thetas)
+            vals = np.where(better, vals2, vals)
+            unit_points = space.to_unit(thetas)
+        for value, theta in zip(vals, thetas):
+            rec(value, space.to_free(theta))
+        return unit_points, thetas, vals
+
+    rng = np.random.default_rng(seed)
+    rec.stage = "design"
+    all_unit, thetas, losses = evaluate(space.design(n_design, design, seed))
+    half = 0.25
+    for _ in range(int(rounds)):
+        best_u = all_unit[np.argsort(losses)[:keep]]
+        local = []
+        for u in best_u:  # a Latin hypercube in a box around each of the best so far
+            box = space.design(max(2, n_design // keep), "lhs", int(rng.integers(1 << 30)))
+            local.append(np.clip(u + (2 * box - 1) * half, 1e-4, 1 - 1e-4))
+        u_new, th_new, l_new = evaluate(np.concatenate(local))
+        all_unit = np.concatenate([all_unit, u_new])
+        thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
+        half *= 0.5
+    order = np.argsort(losses)
+    design_rows = [{**{n: float(thetas[i, j]) for j, n in enumerate(names)}, "loss": float(losses[i])}
+                   for i in order]
+    timings["design"] = time.perf_counter() - t0
+
+    # ---- noise at the best design point -------------------------------------------------
+    t0 = time.perf_counter()
+    best_theta = jnp.asarray(thetas[order[0]], jnp.float32)
+    noise_keys = jax.random.split(jax.random.key(seed + 2), max(noise_seeds, 3))
+    per_seed = jax.jit(lambda th: jax.vmap(lambda k: texture_stats(
+        sim.run(space.as_dict(th), k), stats))(noise_keys))(best_theta)
+    noise = jax.tree_util.tree_map(np.asarray, noise_of(per_seed))
+    timings["noise"] = time.perf_counter() - t0
+
+    # ---- local stage ------------------------------------------------------------------
+    t0 = time.perf_counter()
+
+    def loss_fn(z, args):
+        theta = space.from_free(z)
+        value = distance(stats_at(theta, keys), tstats, stats, noise)
+        jax.debug.callback(rec, value, z)
+        return value
+
+    def resid_fn(z, args):
+        theta = space.from_free(z)
+        r = residuals(stats_at(theta, keys), tstats, stats, noise)
+        jax.debug.callback(rec, jnp.sum(r * r), z)
+        return r
+
+    loss_jit = eqx.filter_jit(lambda z: distance(stats_at(space.from_free(z), keys), tstats, stats, noise))
+    starts = [space.to_free(thetas[i]) for i in order[: min(keep, len(order))]]
+    finals = []
+    for k, z0 in enumerate(starts):
+        z0 = jnp.asarray(z0, jnp.float32)
+        rec.start = k
+        start_loss = float(loss_jit(z0))
+        z, used = _local(method, loss_fn, resid_fn, z0, max_steps, learning_rate, rec)
+        end_loss = float(loss_jit(z))
+        if fallback and method != "nelder-mead" and not end_loss < 0.99 * start_loss:
+            z_nm, _ = _local("nelder-mead", loss_fn, resid_fn, z0, max_steps, learning_rate, rec)
+            nm_loss = float(loss_jit(z_nm))
+            if nm_loss < end_loss:
+                z, end_loss, used = z_nm, nm_loss, f"{used}->nelder-mead"
+        finals.append((end_loss, np.asarray(z), used, start_loss))
+    timings["local"] = time.perf_counter() - t0
+
+    # ---- report -----------------------------------------------------------------------
+    t0 = time.perf_counter()
+    finals.sort(key=lambda f: f[0])
+    best_loss, z_best, used, _ = finals[0]
+    theta_best = np.asarray(space.from_free(jnp.asarray(z_best)))
+    params = {n: float(theta_best[j]) for j, n in enumerate(names)}
+    fit_stats = stats_at(jnp.asarray(theta_best, jnp.float32), keys)
+    floor_keys = jax.random.split(jax.random.key(seed + 3), 4)
+    singles = jax.vmap(lambda k: texture_stats(sim.run(space.as_dict(jnp.asarray(theta_best, jnp.float32)), k),
+                                               stats))(floor_keys)
+    floor = float(np.mean([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats, noise))
+                           for i in range(len(floor_keys))]))
+    sample = np.asarray(sim.run(space.as_dict(jnp.asarray(theta_best, jnp.float32)), floor_keys[0]))
+    from ._report import region_stats
+
+    report = {"target": region_stats(target.field), "fit": region_stats(sample)}
+    timings["report"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    if bar is not None:
+        bar.close()
+    history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]
+    config = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
+              "method": used, "requested_method": method, "seeds": seeds, "seed": seed, "design": design,
+              "n_design": n_design, "rounds": rounds, "keep": keep, "max_steps": max_steps, "simulator": sim.describe(),
+              "stats": dataclasses.asdict(stats), "starts": [
+                  {"start_loss": f[3], "final_loss": f[0], "method": f[2],
+                   "params": {n: float(v) for n, v in zip(names, np.asarray(space.from_free(jnp.asarray(f[1]))))}}
+                  for f in finals]}
+    return FitResult(
+        params=params, model=sim.build(params), loss=float(best_loss), noise_floor=floor, history=history,
+        timings=timings, stats={"target": _tolist(tstats), "fit": _tolist(fit_stats), "noise": _tolist(noise)},
+        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample},
+        config=config, target=target.describe(),
+    )
+
+
+def _tolist(tree):
+    return {k: np.asarray(v).tolist() for k, v in tree.items()}
+
+
+def _local(method, loss_fn, resid_fn, z0, max_steps, learning_rate, rec):
+    """One local search from z0; returns (z, method used)."""
+    import optimistix as optx
+
+    if max_steps == 0:
+        return z0, method
+    rec.stage = method
+    if method == "gd":
+        return gradient_descent(lambda z: loss_fn(z, None), z0, learning_rate=learning_rate, steps=max_steps)[0], "gd"
+    if method == "lm":
+        sol = optx.least_squares(resid_fn, optx.LevenbergMarquardt(rtol=1e-3, atol=1e-3), z0, max_steps=max_steps,
+                                 throw=False)
+        return sol.value, "lm"
+    solver = optx.BFGS(rtol=1e-3, atol=1e-3) if method == "bfgs" else optx.NelderMead(rtol=1e-3, atol=1e-3)
+    sol = optx.minimise(loss_fn, solver, z0, max_steps=max_steps, throw=False)
+    return sol.value, method
+
+
+def gradient_descent(loss, z0, *, learning_rate: float = 0.05, steps: int = 50, callback=None,
+                     normalise: bool = True):
+    """A plain gradient-descent loop through `jax.grad`, for notebooks that watch the loss.
+
+    `callback(step, z, loss)` is called after every step (plot, print, stop by raising
+    StopIteration). With `normalise`, steps have length `learning_rate` in the direction of
+    the negative gradient (robust to the large dynamic range of simulation gradients).
+    Returns (z, losses).
+    """
+    value_and_grad = eqx.filter_jit(jax.value_and_grad(loss))
+    z = jnp.asarray(z0)
+    losses = []
+    for k in range(int(steps)):
+        value, g = value_and_grad(z)
+        losses.append(float(value))
+        if normalise:
+            g = g / (jnp.linalg.norm(g) + 1e-12)
+        z_new = z - learning_rate * g
+        if callback is not None:
+            try:
+                callback(k, z_new, float(value))
+            except StopIteration:
+                z = z_new
+                break
+        z = z_new
+    return z, losses

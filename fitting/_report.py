@@ -1,0 +1,95 @@
+"""Fit reports: region statistics (scikit-image) and the side-by-side preview picture."""
+
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+
+def region_stats(field, thresh=None) -> dict:
+    """Non-differentiable statistics of the bright (pigment-high) phase: spots per 1000 cells,
+    area distribution, mean eccentricity, Euler number; plus the dark fraction."""
+    from skimage.filters import threshold_otsu
+    from skimage.measure import euler_number, label, regionprops
+
+    x = np.asarray(field, float)
+    if np.ptp(x) == 0:
+        return {"spots_per_1000_cells": 0.0, "dark_fraction": 1.0, "area_mean": 0.0, "area_median": 0.0,
+                "area_q25": 0.0, "area_q75": 0.0, "eccentricity_mean": 0.0, "euler_number": 0}
+    t = threshold_otsu(x) if thresh is None else thresh
+    mask = x >= t
+    lab = label(mask, connectivity=2)
+    props = regionprops(lab)
+    areas = np.array([p.area for p in props], float)
+    ecc = np.array([p.eccentricity for p in props if p.area >= 3], float)
+    q = np.quantile(areas, [0.25, 0.5, 0.75]) if len(areas) else np.zeros(3)
+    return {
+        "spots_per_1000_cells": 1000.0 * len(areas) / x.size,
+        "dark_fraction": float((~mask).mean()),
+        "area_mean": float(areas.mean()) if len(areas) else 0.0,
+        "area_median": float(q[1]), "area_q25": float(q[0]), "area_q75": float(q[2]),
+        "eccentricity_mean": float(ecc.mean()) if len(ecc) else 0.0,
+        "euler_number": int(euler_number(mask, connectivity=2)),
+    }
+
+
+def _gray(x, size):
+    x = np.asarray(x, float)
+    lo, hi = np.quantile(x, [0.02, 0.98])
+    z = np.clip((x - lo) / max(hi - lo, 1e-9), 0, 1)
+    img = Image.fromarray((z * 255).astype(np.uint8), "L").convert("RGB")
+    return img.resize(size, Image.NEAREST)
+
+
+def loss_curve(history, size=(256, 256)) -> Image.Image:
+    """The loss of every evaluation (log scale), design points then local searches."""
+    w, h = size
+    img = Image.new("RGB", size, "white")
+    draw = ImageDraw.Draw(img)
+    font = ImageFont.load_default()
+    losses = np.array([row["loss"] for row in history], float)
+    losses = losses[np.isfinite(losses) & (losses > 0)]
+    if len(losses) == 0:
+        draw.text((8, 8), "no loss values", fill="black", font=font)
+        return img
+    logl = np.log10(losses)
+    lo, hi = float(logl.min()), float(logl.max())
+    span = max(hi - lo, 1e-9)
+    left, right, top, bottom = 40, w - 8, 18, h - 22
+    draw.rectangle([left, top, right, bottom], outline="gray")
+    n = len(logl)
+    pts = [(left + (right - left) * (i / max(n - 1, 1)), bottom - (bottom - top) * (v - lo) / span)
+           for i, v in enumerate(logl)]
+    stages = [row["stage"] for row in history if row["loss"] > 0 and np.isfinite(row["loss"])]
+    for (x, y), st in zip(pts, stages):
+        colour = (160, 160, 160) if st == "design" else (200, 60, 30)
+        draw.ellipse([x - 1.5, y - 1.5, x + 1.5, y + 1.5], fill=colour)
+    best = np.minimum.accumulate(logl)
+    draw.line([(left + (right - left) * (i / max(n - 1, 1)), bottom - (bottom - top) * (v - lo) / span)
+               for i, v in enumerate(best)], fill=(30, 60, 200), width=2)
+    draw.text((4, 2), "log10 loss (grey: design, red: local, blue: best)", fill="black", font=font)
+    draw.text((4, top), f"{hi:.1f}", fill="black", font=font)
+    draw.text((4, bottom - 10), f"{lo:.1f}", fill="black", font=font)
+    draw.text((left, bottom + 6), f"{n} evaluations", fill="black", font=font)
+    return img
+
+
+def preview(result, scale: int | None = None) -> Image.Image:
+    """target | fitted simulation | loss curve, with the fitted parameters underneath."""
+    tf, ff = result.fields["target"], result.fields["fit"]
+    side = 256
+    tsize = (side, int(side * tf.shape[0] / tf.shape[1]))
+    fsize = (side, int(side * ff.shape[0] / ff.shape[1]))
+    panels = [_gray(tf, tsize), _gray(ff, fsize), loss_curve(result.history, (side, side))]
+    height = max(p.height for p in panels) + 46
+    canvas = Image.new("RGB", (3 * side + 16, height), "white")
+    draw = ImageDraw.Draw(canvas)
+    font = ImageFont.load_default()
+    for k, (p, title) in enumerate(zip(panels, ["target", "fitted simulation", "loss"])):
+        canvas.paste(p, (4 + k * (side + 4), 16))
+        draw.text((4 + k * (side + 4), 2), title, fill="black", font=font)
+    text = ", ".join(f"{k} = {v:.3g}" for k, v in result.params.items())
+    draw.text((4, height - 28), text, fill="black", font=font)
+    draw.text((4, height - 15), f"loss {result.loss:.3g} (noise floor {result.noise_floor:.3g}), "
+                                f"{result.timings.get('total', 0):.0f} s", fill="black", font=font)
+    return canvas

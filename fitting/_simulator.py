@@ -1,0 +1,183 @@
+"""From fitted parameters to a simulated field: the forward model of a fit.
+
+`Simulator` wraps a model (one static phase) or a multi-phase `Experiment` (growth, sources,
+species added between phases). It is a pure function of (parameters, key), so fits can
+vmap it over seeds and design points and differentiate it.
+
+Time step: for a model the step adapts to the parameters, dt = min(safety x the explicit-
+Euler limit, dt_cap), so every point of the parameter space is stable with the same number
+of steps (the simulated time is steps x dt). Experiments keep their phases' dt (their growth
+schedules are in steps), so their bounds must keep every phase stable.
+
+Gradients: only the last `window` steps are differentiated; the state before them is held
+constant (truncated backpropagation through time). Over long horizons the exact gradient of
+a pattern-forming run is dominated by where individual spots happen to sit, not by the
+texture, and grows without bound; differentiating the final relaxation towards the settled
+pattern gives the informative part (see docs in `fitting/__init__.py`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import morphojax as mj
+from morphojax._experiment import Experiment, Phase
+from morphojax._lattice import _SPECTRAL_RADIUS, normalise_stencil
+from morphojax._models import AbstractModel, Composite
+
+
+def _apply(model: AbstractModel, params: dict) -> AbstractModel:
+    """Set the parameters this model has (composites: in every part that has them)."""
+    if isinstance(model, Composite):
+        parts = tuple(_apply(p, params) for p in model.parts)
+        return Composite(parts, species=model.species)
+    known = {k: v for k, v in params.items() if k in model.parameters()}
+    return model.replace(**known) if known else model
+
+
+def _has(model: AbstractModel, name: str) -> bool:
+    if isinstance(model, Composite):
+        return any(_has(p, name) for p in model.parts)
+    return name in model.parameters()
+
+
+@dataclasses.dataclass(frozen=True)
+class Simulator:
+    """How a dict of parameters becomes one simulated 2D field.
+
+    Args:
+        template: a model (e.g. `Turing(...)`) or an `Experiment`; fitted and fixed parameters
+            replace its values by name. For experiments a name applies to every phase whose
+            model has it; "PHASE:name" restricts it to the phase called PHASE; "growth_rate"
+            sets the rate of every growing phase (or "PHASE:growth_rate").
+        shape: lattice (rows, cols) for a model template.
+        steps, window: steps per run and how many of the last are differentiated.
+        species: the species compared with the target (default: the experiment's `show`, or
+            the model's last species, B for Turing).
+        boundary, stencil: for a model template.
+        safety, dt_cap, dt: adaptive time step for a model template (dt fixes it instead).
+        fixed: parameters set before the fitted ones.
+    """
+
+    template: Any
+    shape: tuple = (64, 64)
+    steps: int = 8000
+    window: int = 1000
+    species: str | None = None
+    boundary: str = "wrap"
+    stencil: str = "nine-point"
+    safety: float = 0.8
+    dt_cap: float = 0.01
+    dt: float | None = None
+    fixed: tuple = ()
+
+    def __post_init__(self):
+        if not isinstance(self.template, (AbstractModel, Experiment)):
+            raise ValueError(f"Simulator.template must be a model or an Experiment (got {type(self.template).__name__})")
+        if isinstance(self.template, AbstractModel) and (self.steps < 1 or not 0 <= self.window <= self.steps):
+            raise ValueError(f"need steps >= 1 and 0 <= window <= steps (got steps={self.steps}, window={self.window})")
+
+    # ---- parameters -------------------------------------------------------------------
+    def parameter_names(self) -> list[str]:
+        if isinstance(self.template, AbstractModel):
+            return list(self.template.parameters())
+        names = []
+        for ph in self.template.phases:
+            for n in ph.model.parameters():
+                base = n.split(".", 1)[-1] if isinstance(ph.model, Composite) else n
+                if base not in names:
+                    names.append(base)
+        return names + (["growth_rate"] if any(ph.growth is not None for ph in self.template.phases) else [])
+
+    def check_names(self, names) -> None:
+        known = self.parameter_names()
+        phases = {ph.name for ph in self.template.phases} if isinstance(self.template, Experiment) else set()
+        for n in names:
+            ph, _, base = n.rpartition(":")
+            if base not in known or (ph and ph not in phases):
+                raise ValueError(f"cannot fit {n!r}: the model's parameters are {', '.join(known)}"
+                                 + (f"; phases: {', '.join(sorted(phases))}" if phases else ""))
+
+    def build(self, params: dict):
+        """The model or experiment with `params` (and `fixed`) applied."""
+        params = {**dict(self.fixed), **params}
+        if isinstance(self.template, AbstractModel):
+            return _apply(self.template, params)
+        phases = []
+        for ph in self.template.phases:
+            mine = {}
+            for k, v in params.items():
+                target, _, base = k.rpartition(":")
+                if not target or target == ph.name:
+                    mine[base] = v
+            growth = ph.growth
+            if growth is not None and "growth_rate" in mine:
+                growth = eqx.tree_at(lambda g: g.rate, growth, jnp.asarray(mine["growth_rate"], growth.rate.dtype))
+            model_params = {k: v for k, v in mine.items() if k != "growth_rate" and _has(ph.model, k)}
+            phases.append(Phase(**{**ph.__dict__, "model": _apply(ph.model, model_params), "growth": growth}))
+        return dataclasses.replace(self.template, phases=tuple(phases))
+
+    # ---- forward ----------------------------------------------------------------------
+    def time_step(self, model):
+        if self.dt is not None:
+            return jnp.asarray(self.dt)
+        rho = _SPECTRAL_RADIUS[normalise_stencil(self.stencil)]
+        dmax = jnp.max(model.diffusion())
+        return jnp.minimum(self.safety * 2.0 / (rho * dmax), self.dt_cap)
+
+    def _species(self, names) -> int:
+        if self.species is not None:
+            return names.index(self.species)
+        if isinstance(self.template, Experiment) and self.template.show in names:
+            return names.index(self.template.show)
+        return len(names) - 1
+
+    def run(self, params: dict, key):
+        """One simulated field (rows, cols) for `params` and `key`; NaN never comes out."""
+        if isinstance(self.template, AbstractModel):
+            model = self.build(params)
+            state = mj.initial_state(self.template, jax.random.fold_in(key, 0), self.shape)
+            dt = self.time_step(model)
+            opts = dict(boundary=self.boundary, stencil=self.stencil, check_dt=False, throw=False)
+            head = self.steps - self.window
+            if head > 0:
+                state = jax.lax.stop_gradient(mj.simulate(model, state, steps=head, dt=dt, **opts))
+            state = mj.simulate(model, state, steps=self.window, dt=dt, checkpoint=True, **opts)
+            field = state.fields[self._species(state.names)]
+        else:
+            exp = self.build(params)
+            result = mj.run_experiment(exp, key=key, grad_window=self.window)
+            state = result.state
+            rows, cols = self.final_shape()
+            field = state.fields[self._species(state.names), :rows, :cols]
+        return jnp.where(jnp.isfinite(field), field, 0.0)
+
+    def final_shape(self) -> tuple:
+        """The lattice the compared field lives on (concrete, from the growth schedules)."""
+        if isinstance(self.template, AbstractModel):
+            return tuple(self.shape)
+        rows, cols = self.template.initial.shape
+        for ph in self.template.phases:
+            if ph.growth is not None:
+                n = ph.growth.expansions(ph.steps, ph.dt)
+                rows, cols = rows + n, cols + n
+        return int(rows), int(cols)
+
+    def describe(self) -> dict:
+        from morphojax._io import model_to_dict, to_jsonable
+
+        tmpl = model_to_dict(self.template) if isinstance(self.template, AbstractModel) else self.template.to_dict()
+        return to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
+                            "window": self.window, "species": self.species, "boundary": self.boundary,
+                            "stencil": self.stencil, "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
+                            "fixed": dict(self.fixed)})
+
+
+def fixed_tuple(fixed: dict | None) -> tuple:
+    return tuple(sorted((str(k), float(np.asarray(v))) for k, v in (fixed or {}).items()))

@@ -1,0 +1,155 @@
+"""The space of fitted parameters: names, bounds, and reparameterisations.
+
+Optimisers work in an unconstrained vector z. Each parameter maps from a unit coordinate
+u = sigmoid(z) in (0, 1) to its bounds: geometrically for positive parameters that span
+decades (ratio, scale, diffusion rates, growth rate), linearly otherwise. Positivity and
+bounds therefore always hold. An upper limit fitted together with its lower limit
+(`lower_b` and `upper_b`) is parameterised as lower + u (bound - lower), so lower <= upper
+whatever z is.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+# name: (low, high, geometric?)
+DEFAULT_BOUNDS = {
+    "ratio": (2.0, 50.0, True),
+    "scale": (0.2, 8.0, True),
+    "alpha": (8.0, 20.0, False),
+    "beta": (8.0, 20.0, False),
+    "sp": (1e-3, 1.0, True),
+    "da": (1e-3, 10.0, True),
+    "db": (1e-3, 10.0, True),
+    "feed": (0.005, 0.1, False),
+    "kill": (0.03, 0.08, False),
+    "du": (0.02, 1.0, True),
+    "dv": (0.01, 0.5, True),
+    "threshold": (0.0, 10.0, False),
+    "width": (0.5, 10.0, True),
+    "diffusion": (0.05, 5.0, True),
+    "lower_a": (0.0, 5.0, False),
+    "lower_b": (0.0, 6.0, False),
+    "upper_a": (3.5, 12.0, False),
+    "upper_b": (2.0, 20.0, False),
+    "growth_rate": (0.1, 20.0, True),
+}
+
+
+def default_bounds(name: str):
+    base = name.split(".")[-1].split(":")[-1]
+    if base in DEFAULT_BOUNDS:
+        return DEFAULT_BOUNDS[base]
+    raise ValueError(f"no default bounds for parameter {name!r}; give bounds={{'{name}': (low, high)}}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ParamSpace:
+    """Bounds and transforms for an ordered list of parameter names."""
+
+    names: tuple
+    low: tuple
+    high: tuple
+    geometric: tuple
+    paired: tuple  # index of the lower limit an upper limit is tied to, or -1
+
+    @classmethod
+    def build(cls, names, bounds=None) -> "ParamSpace":
+        names = tuple(names)
+        if not names:
+            raise ValueError("fit needs at least one parameter name to fit")
+        if len(set(names)) != len(names):
+            raise ValueError(f"fit names repeat: {names}")
+        bounds = dict(bounds or {})
+        low, high, geo = [], [], []
+        for n in names:
+            if n in bounds:
+                b = bounds[n]
+                lo, hi = float(b[0]), float(b[1])
+                g = bool(b[2]) if len(b) > 2 else default_bounds(n)[2] if _known(n) else False
+            else:
+                lo, hi, g = default_bounds(n)
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise ValueError(f"bounds for {n!r} must be finite with low < high (got {(lo, hi)})")
+            if g and lo <= 0:
+                raise ValueError(f"bounds for {n!r} are geometric and need low > 0 (got {lo})")
+            low.append(lo)
+            high.append(hi)
+            geo.append(g)
+        paired = []
+        for n in names:
+            kind, _, who = n.rpartition(".")[-1].partition("_")
+            prefix = n[: len(n) - len(n.rpartition(".")[-1])]
+            partner = f"{prefix}lower_{who}"
+            paired.append(names.index(partner) if kind == "upper" and partner in names else -1)
+        return cls(names, tuple(low), tuple(high), tuple(geo), tuple(paired))
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def from_unit(self, u):
+        """Unit coordinates (..., d) in [0, 1] -> parameter values (..., d)."""
+        u = jnp.asarray(u)
+        lo, hi = jnp.asarray(self.low, u.dtype), jnp.asarray(self.high, u.dtype)
+        geo = jnp.asarray(self.geometric)
+        lin = lo + u * (hi - lo)
+        log = jnp.exp(jnp.log(jnp.where(geo, lo, 1.0)) + u * (jnp.log(jnp.where(geo, hi, 2.0))
+                                                                 - jnp.log(jnp.where(geo, lo, 1.0))))
+        vals = jnp.where(geo, log, lin)
+        for i, j in enumerate(self.paired):
+            if j >= 0:  # upper tied above its lower limit
+                v = vals[..., j] + u[..., i] * (hi[i] - vals[..., j])
+                vals = vals.at[..., i].set(v)
+        return vals
+
+    def to_unit(self, values):
+        """Inverse of `from_unit` (NumPy, for starting points and reports)."""
+        v = np.asarray(values, np.float64)
+        lo, hi = np.asarray(self.low), np.asarray(self.high)
+        u = np.empty_like(v)
+        for i in range(self.size):
+            if self.paired[i] >= 0:
+                j = self.paired[i]
+                u[..., i] = (v[..., i] - v[..., j]) / np.maximum(hi[i] - v[..., j], 1e-12)
+            elif self.geometric[i]:
+                u[..., i] = np.log(v[..., i] / lo[i]) / np.log(hi[i] / lo[i])
+            else:
+                u[..., i] = (v[..., i] - lo[i]) / (hi[i] - lo[i])
+        return np.clip(u, 1e-6, 1 - 1e-6)
+
+    def from_free(self, z):
+        """Unconstrained z (the optimisers' space) -> parameter values."""
+        return self.from_unit(jax.nn.sigmoid(z))
+
+    def to_free(self, values):
+        u = self.to_unit(values)
+        return np.log(u) - np.log1p(-u)
+
+    def as_dict(self, values) -> dict:
+        return {n: values[..., i] for i, n in enumerate(self.names)}
+
+    def design(self, n: int, method: str = "lhs", seed: int = 0) -> np.ndarray:
+        """A coarse design of n points in unit coordinates: Latin hypercube or a grid."""
+        rng = np.random.default_rng(seed)
+        d = self.size
+        if method == "lhs":
+            cells = np.stack([rng.permutation(n) for _ in range(d)], axis=1)
+            return (cells + rng.uniform(size=(n, d))) / n
+        if method == "grid":
+            per = max(2, int(round(n ** (1.0 / d))))
+            axes = [(np.arange(per) + 0.5) / per] * d
+            return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, d)
+        raise ValueError(f"unknown design {method!r}; allowed: 'lhs', 'grid'")
+
+
+def _known(name: str) -> bool:
+    try:
+        default_bounds(name)
+        return True
+    except ValueError:
+        return False

@@ -1,0 +1,175 @@
+"""Target photos: loading, cropping, channel, inversion, robust normalisation, resolution.
+
+A `Target` is the photo's intensity at *lattice* resolution: one value per simulated cell.
+The resolution is `cell_pixels` photo pixels per cell, given by the user or estimated so
+that the photo's dominant wavelength spans `wavelength_cells` cells (the scale at which the
+simulation is cheap and well resolved).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageOps, UnidentifiedImageError
+
+CHANNELS = ("luminance", "red", "green", "blue", "alpha", "saturation", "value")
+MIN_PIXELS = 16  # a crop smaller than this cannot show a texture
+MIN_CELLS = 16  # nor can a lattice smaller than this
+
+
+@dataclasses.dataclass
+class Target:
+    """A texture to fit.
+
+    Attributes:
+        field: 2D float array in [0, 1] at lattice resolution (rows, cols).
+        pixels: the cropped, normalised photo at full resolution (for previews).
+        cell_pixels: photo pixels per lattice cell.
+        source, crop, channel, invert, quantiles: how it was made (saved with fits).
+    """
+
+    field: np.ndarray
+    pixels: np.ndarray
+    cell_pixels: float
+    source: str = ""
+    crop: tuple | None = None
+    channel: str = "luminance"
+    invert: bool = False
+    quantiles: tuple = (0.02, 0.98)
+
+    @property
+    def shape(self):
+        return self.field.shape
+
+    def describe(self) -> dict:
+        return {"source": self.source, "crop": list(self.crop) if self.crop else None, "channel": self.channel,
+                "invert": self.invert, "quantiles": list(self.quantiles), "cell_pixels": self.cell_pixels,
+                "lattice": list(self.field.shape), "pixels": list(self.pixels.shape)}
+
+
+def _channel(img: Image.Image, channel: str) -> np.ndarray:
+    if channel not in CHANNELS:
+        raise ValueError(f"unknown channel {channel!r}; allowed: {', '.join(CHANNELS)}")
+    if channel == "alpha":
+        if "A" not in img.getbands():
+            raise ValueError("channel 'alpha' requested but the image has no alpha channel")
+        return np.asarray(img.getchannel("A"), np.float64) / 255.0
+    rgb = img.convert("RGB")
+    if channel == "luminance":
+        return np.asarray(rgb.convert("L"), np.float64) / 255.0
+    if channel in ("saturation", "value"):
+        hsv = np.asarray(rgb.convert("HSV"), np.float64) / 255.0
+        return hsv[..., 1] if channel == "saturation" else hsv[..., 2]
+    return np.asarray(rgb, np.float64)[..., "rgb".index(channel[0])] / 255.0
+
+
+def normalise(x: np.ndarray, quantiles=(0.02, 0.98)) -> np.ndarray:
+    """Robust normalisation to [0, 1] by two quantiles (values beyond are clipped)."""
+    lo, hi = np.quantile(x, quantiles)
+    if hi - lo < 1e-6:
+        raise ValueError("the target has no contrast: its intensity is (almost) constant in the crop")
+    return np.clip((x - lo) / (hi - lo), 0.0, 1.0)
+
+
+def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 8.0) -> float:
+    """Photo pixels per lattice cell such that the dominant wavelength spans `wavelength_cells`."""
+    from morphojax._descriptors import dominant_wavelength
+
+    x = pixels
+    factor = 1
+    while max(x.shape) > 512:  # the spectrum's peak needs no more resolution than this
+        x = x[: x.shape[0] // 2 * 2, : x.shape[1] // 2 * 2]
+        x = 0.25 * (x[::2, ::2] + x[1::2, ::2] + x[::2, 1::2] + x[1::2, 1::2])
+        factor *= 2
+    x = x - x.mean()
+    window = np.outer(np.hanning(x.shape[0]), np.hanning(x.shape[1]))  # no edge artefacts
+    lam = dominant_wavelength(x * window) * factor
+    if not np.isfinite(lam) or lam <= 2:
+        raise ValueError("could not measure a dominant wavelength in the target; give cell_pixels explicitly")
+    return float(lam / wavelength_cells)
+
+
+def resample(pixels: np.ndarray, cell_pixels: float) -> np.ndarray:
+    """Area-average the photo down to one value per lattice cell."""
+    rows = int(round(pixels.shape[0] / cell_pixels))
+    cols = int(round(pixels.shape[1] / cell_pixels))
+    if rows < MIN_CELLS or cols < MIN_CELLS:
+        raise ValueError(
+            f"image too small to measure: at {cell_pixels:.2f} pixels per cell the crop {pixels.shape[1]}x"
+            f"{pixels.shape[0]} px gives a {cols}x{rows} lattice; at least {MIN_CELLS}x{MIN_CELLS} cells are needed "
+            "(crop a larger region or lower cell_pixels)"
+        )
+    img = Image.fromarray(pixels.astype(np.float32), mode="F")
+    small = img.resize((cols, rows), Image.BOX if cell_pixels >= 1 else Image.BICUBIC)
+    return np.clip(np.asarray(small, np.float64), 0.0, 1.0)
+
+
+def load_target(source, *, crop=None, channel: str = "luminance", invert: bool = False,
+                quantiles=(0.02, 0.98), cell_pixels: float | None = None, wavelength_cells: float = 8.0) -> Target:
+    """Load a photo (path or array) as a fitting target.
+
+    Args:
+        source: image path (any format pillow reads; EXIF orientation is honoured; RGB,
+            grey or with alpha) or a 2D array.
+        crop: (x0, y0, x1, y1) pixel box (after EXIF rotation), x1/y1 exclusive.
+        channel: "luminance" (default), "red", "green", "blue", "alpha", "saturation", "value".
+        invert: if True, dark pigment becomes high values (match a model where the pigment
+            species is high where the photo is dark).
+        quantiles: the (low, high) quantiles mapped to 0 and 1.
+        cell_pixels: photo pixels per lattice cell; None estimates it from the dominant
+            wavelength so that it spans `wavelength_cells` cells.
+    """
+    if isinstance(source, (str, Path)):
+        path = Path(source)
+        try:
+            with Image.open(path) as im:
+                im = ImageOps.exif_transpose(im)
+                im.load()
+        except FileNotFoundError:
+            raise ValueError(f"cannot read image {path}: no such file") from None
+        except (UnidentifiedImageError, OSError) as err:
+            raise ValueError(f"cannot read image {path}: {err}") from None
+        name = str(path)
+    elif isinstance(source, Image.Image):
+        im, name = ImageOps.exif_transpose(source), "<image>"
+    else:
+        arr = np.asarray(source, np.float64)
+        if arr.ndim != 2:
+            raise ValueError(f"an array target must be 2D (got shape {arr.shape})")
+        im, name = None, "<array>"
+    if im is not None:
+        width, height = im.size
+        if crop is not None:
+            x0, y0, x1, y1 = (int(v) for v in crop)
+            if not (0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height):
+                raise ValueError(
+                    f"crop {tuple(crop)} lies outside the image of {width}x{height} pixels: need "
+                    f"0 <= x0 < x1 <= {width} and 0 <= y0 < y1 <= {height}"
+                )
+            im = im.crop((x0, y0, x1, y1))
+        pixels = _channel(im, channel)
+    else:
+        pixels = arr
+        if crop is not None:
+            x0, y0, x1, y1 = (int(v) for v in crop)
+            if not (0 <= x0 < x1 <= arr.shape[1] and 0 <= y0 < y1 <= arr.shape[0]):
+                raise ValueError(f"crop {tuple(crop)} lies outside the array of {arr.shape[1]}x{arr.shape[0]}")
+            pixels = arr[y0:y1, x0:x1]
+    if min(pixels.shape) < MIN_PIXELS:
+        raise ValueError(f"image too small to measure: {pixels.shape[1]}x{pixels.shape[0]} px, need at least "
+                         f"{MIN_PIXELS}x{MIN_PIXELS}")
+    if not np.isfinite(pixels).all():
+        raise ValueError("the target contains NaN or infinite values")
+    pixels = normalise(pixels, quantiles)
+    if invert:
+        pixels = 1.0 - pixels
+    if cell_pixels is None:
+        cell_pixels = estimate_cell_pixels(pixels, wavelength_cells)
+    elif not (np.isfinite(cell_pixels) and cell_pixels > 0):
+        raise ValueError(f"cell_pixels must be a positive number (got {cell_pixels!r})")
+    field = resample(pixels, float(cell_pixels))
+    return Target(field=field, pixels=pixels, cell_pixels=float(cell_pixels), source=name,
+                  crop=tuple(int(v) for v in crop) if crop is not None else None, channel=channel,
+                  invert=bool(invert), quantiles=tuple(quantiles))
