@@ -99,6 +99,66 @@ def _as_template(model, shape):
     raise ValueError(f"model must be a model name, a model or an Experiment (got {type(model).__name__})")
 
 
+_RECORDERS: list = []  # the recorder of the fit in progress (callbacks from compiled code)
+
+
+def _record(loss, z):
+    if _RECORDERS:
+        _RECORDERS[-1](loss, z)
+
+
+def _stats_at(sim, space, cfg, theta, keys):
+    params = space.as_dict(theta)
+    fields = jax.vmap(lambda k: sim.run(params, k))(keys)
+    return mean_stats(fields, cfg)
+
+
+# Compiled once per (simulator structure, parameter space, statistics config, shapes) and
+# reused by later fits: the simulator's model, the target statistics, keys and noise are
+# traced arguments.
+@eqx.filter_jit
+def _design_batch(sim, space, cfg, thetas, keys, tstats):
+    def one(theta):
+        st = _stats_at(sim, space, cfg, theta, keys)
+        return distance(st, tstats, cfg), st["wavelength"]
+
+    return jax.vmap(one)(thetas)
+
+
+@eqx.filter_jit
+def _seed_stats(sim, space, cfg, theta, keys):
+    return jax.vmap(lambda k: texture_stats(sim.run(space.as_dict(theta), k), cfg))(keys)
+
+
+@eqx.filter_jit
+def _loss_at(sim, space, cfg, z, keys, tstats, noise):
+    return distance(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise)
+
+
+@eqx.filter_jit
+def _mean_stats_at(sim, space, cfg, theta, keys):
+    return _stats_at(sim, space, cfg, theta, keys)
+
+
+@eqx.filter_jit
+def _sample(sim, space, theta, key):
+    return sim.run(space.as_dict(theta), key)
+
+
+def _loss_fn(z, args):
+    sim, space, cfg, keys, tstats, noise = args
+    value = distance(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise)
+    jax.debug.callback(_record, value, z)
+    return value
+
+
+def _resid_fn(z, args):
+    sim, space, cfg, keys, tstats, noise = args
+    r = residuals(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise)
+    jax.debug.callback(_record, jnp.sum(r * r), z)
+    return r
+
+
 class _Recorder:
     """Collects losses evaluated inside compiled solvers (through jax.debug.callback)."""
 
@@ -176,27 +236,27 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
 
         bar = tqdm(desc="fit", unit="eval")
     rec = _Recorder(bar)
+    _RECORDERS.append(rec)
+    try:
+        return _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, seed=seed,
+                    design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
+                    fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
+                    length_scale=length_scale, seeds=seeds)
+    finally:
+        _RECORDERS.remove(rec)
+        if bar is not None:
+            bar.close()
 
-    def stats_at(theta, ks):
-        params = space.as_dict(theta)
-        fields = jax.vmap(lambda k: sim.run(params, k))(ks)
-        return mean_stats(fields, stats)
 
+def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, *, seed, design, n_design, rounds,
+         keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, seeds):
     # ---- global stage: a coarse design, then `rounds` finer designs around the best ------
     t0 = time.perf_counter()
-
-    @eqx.filter_jit
-    def batch_loss(theta_batch):
-        def one(th):
-            st = stats_at(th, keys)
-            return distance(st, tstats, stats), st["wavelength"]
-
-        return jax.vmap(one)(theta_batch)
 
     def run_batch(thetas):
         pad = (-len(thetas)) % batch_size
         padded = np.concatenate([thetas, np.repeat(thetas[-1:], pad, 0)]) if pad else thetas
-        out = [batch_loss(jnp.asarray(padded[i: i + batch_size], jnp.float32))
+        out = [_design_batch(sim, space, stats, jnp.asarray(padded[i: i + batch_size], jnp.float32), keys, tstats)
                for i in range(0, len(padded), batch_size)]
         vals = np.concatenate([np.asarray(o[0]) for o in out])[: len(thetas)]
         lams = np.concatenate([np.asarray(o[1]) for o in out])[: len(thetas)]
@@ -247,40 +307,25 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
 
     # ---- noise at the best design point -------------------------------------------------
     t0 = time.perf_counter()
-    best_theta = jnp.asarray(thetas[order[0]], jnp.float32)
     noise_keys = jax.random.split(jax.random.key(seed + 2), max(noise_seeds, 3))
-    per_seed = jax.jit(lambda th: jax.vmap(lambda k: texture_stats(
-        sim.run(space.as_dict(th), k), stats))(noise_keys))(best_theta)
+    per_seed = _seed_stats(sim, space, stats, jnp.asarray(thetas[order[0]], jnp.float32), noise_keys)
     noise = jax.tree_util.tree_map(np.asarray, noise_of(per_seed))
     timings["noise"] = time.perf_counter() - t0
 
     # ---- local stage ------------------------------------------------------------------
     t0 = time.perf_counter()
-
-    def loss_fn(z, args):
-        theta = space.from_free(z)
-        value = distance(stats_at(theta, keys), tstats, stats, noise)
-        jax.debug.callback(rec, value, z)
-        return value
-
-    def resid_fn(z, args):
-        theta = space.from_free(z)
-        r = residuals(stats_at(theta, keys), tstats, stats, noise)
-        jax.debug.callback(rec, jnp.sum(r * r), z)
-        return r
-
-    loss_jit = eqx.filter_jit(lambda z: distance(stats_at(space.from_free(z), keys), tstats, stats, noise))
+    args = (sim, space, stats, keys, tstats, noise)
     starts = [space.to_free(thetas[i]) for i in order[: min(keep, len(order))]]
     finals = []
     for k, z0 in enumerate(starts):
         z0 = jnp.asarray(z0, jnp.float32)
         rec.start = k
-        start_loss = float(loss_jit(z0))
-        z, used = _local(method, loss_fn, resid_fn, z0, max_steps, learning_rate, rec)
-        end_loss = float(loss_jit(z))
-        if fallback and method != "nelder-mead" and not end_loss < 0.99 * start_loss:
-            z_nm, _ = _local("nelder-mead", loss_fn, resid_fn, z0, max_steps, learning_rate, rec)
-            nm_loss = float(loss_jit(z_nm))
+        start_loss = float(_loss_at(sim, space, stats, z0, keys, tstats, noise))
+        z, used = _local(method, args, z0, max_steps, learning_rate, rec)
+        end_loss = float(_loss_at(sim, space, stats, z, keys, tstats, noise))
+        if fallback and method != "nelder-mead" and max_steps > 0 and not end_loss < 0.99 * start_loss:
+            z_nm, _ = _local("nelder-mead", args, z0, max_steps, learning_rate, rec)
+            nm_loss = float(_loss_at(sim, space, stats, z_nm, keys, tstats, noise))
             if nm_loss < end_loss:
                 z, end_loss, used = z_nm, nm_loss, f"{used}->nelder-mead"
         finals.append((end_loss, np.asarray(z), used, start_loss))
@@ -290,27 +335,24 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
     t0 = time.perf_counter()
     finals.sort(key=lambda f: f[0])
     best_loss, z_best, used, _ = finals[0]
-    theta_best = np.asarray(space.from_free(jnp.asarray(z_best)))
+    theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
-    fit_stats = stats_at(jnp.asarray(theta_best, jnp.float32), keys)
+    fit_stats = _mean_stats_at(sim, space, stats, theta_best, keys)
     floor_keys = jax.random.split(jax.random.key(seed + 3), 4)
-    singles = jax.vmap(lambda k: texture_stats(sim.run(space.as_dict(jnp.asarray(theta_best, jnp.float32)), k),
-                                               stats))(floor_keys)
+    singles = _seed_stats(sim, space, stats, theta_best, floor_keys)
     floor = float(np.mean([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats, noise))
                            for i in range(len(floor_keys))]))
-    sample = np.asarray(sim.run(space.as_dict(jnp.asarray(theta_best, jnp.float32)), floor_keys[0]))
+    sample = np.asarray(_sample(sim, space, theta_best, floor_keys[0]))
     from ._report import region_stats
 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
     timings["report"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
-    if bar is not None:
-        bar.close()
     history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]
     config = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
               "method": used, "requested_method": method, "seeds": seeds, "seed": seed, "design": design,
-              "n_design": n_design, "rounds": rounds, "keep": keep, "max_steps": max_steps, "simulator": sim.describe(),
-              "stats": dataclasses.asdict(stats), "starts": [
+              "n_design": n_design, "rounds": rounds, "keep": keep, "max_steps": max_steps,
+              "simulator": sim.describe(), "stats": dataclasses.asdict(stats), "starts": [
                   {"start_loss": f[3], "final_loss": f[0], "method": f[2],
                    "params": {n: float(v) for n, v in zip(names, np.asarray(space.from_free(jnp.asarray(f[1]))))}}
                   for f in finals]}
@@ -326,7 +368,7 @@ def _tolist(tree):
     return {k: np.asarray(v).tolist() for k, v in tree.items()}
 
 
-def _local(method, loss_fn, resid_fn, z0, max_steps, learning_rate, rec):
+def _local(method, args, z0, max_steps, learning_rate, rec):
     """One local search from z0; returns (z, method used)."""
     import optimistix as optx
 
@@ -334,13 +376,14 @@ def _local(method, loss_fn, resid_fn, z0, max_steps, learning_rate, rec):
         return z0, method
     rec.stage = method
     if method == "gd":
-        return gradient_descent(lambda z: loss_fn(z, None), z0, learning_rate=learning_rate, steps=max_steps)[0], "gd"
+        z, _ = gradient_descent(lambda z: _loss_fn(z, args), z0, learning_rate=learning_rate, steps=max_steps)
+        return z, "gd"
     if method == "lm":
-        sol = optx.least_squares(resid_fn, optx.LevenbergMarquardt(rtol=1e-3, atol=1e-3), z0, max_steps=max_steps,
-                                 throw=False)
+        sol = optx.least_squares(_resid_fn, optx.LevenbergMarquardt(rtol=1e-3, atol=1e-3), z0, args=args,
+                                 max_steps=max_steps, throw=False)
         return sol.value, "lm"
     solver = optx.BFGS(rtol=1e-3, atol=1e-3) if method == "bfgs" else optx.NelderMead(rtol=1e-3, atol=1e-3)
-    sol = optx.minimise(loss_fn, solver, z0, max_steps=max_steps, throw=False)
+    sol = optx.minimise(_loss_fn, solver, z0, args=args, max_steps=max_steps, throw=False)
     return sol.value, method
 
 

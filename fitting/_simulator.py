@@ -47,8 +47,7 @@ def _has(model: AbstractModel, name: str) -> bool:
     return name in model.parameters()
 
 
-@dataclasses.dataclass(frozen=True)
-class Simulator:
+class Simulator(eqx.Module):
     """How a dict of parameters becomes one simulated 2D field.
 
     Args:
@@ -65,19 +64,19 @@ class Simulator:
         fixed: parameters set before the fitted ones.
     """
 
-    template: Any
-    shape: tuple = (64, 64)
-    steps: int = 8000
-    window: int = 1000
-    species: str | None = None
-    boundary: str = "wrap"
-    stencil: str = "nine-point"
-    safety: float = 0.8
-    dt_cap: float = 0.01
-    dt: float | None = None
-    fixed: tuple = ()
+    template: Any  # a pytree: its parameters are traced, so fits reuse compiled programs
+    shape: tuple = eqx.field(static=True, default=(64, 64))
+    steps: int = eqx.field(static=True, default=8000)
+    window: int = eqx.field(static=True, default=1000)
+    species: str | None = eqx.field(static=True, default=None)
+    boundary: str = eqx.field(static=True, default="wrap")
+    stencil: str = eqx.field(static=True, default="nine-point")
+    safety: float = eqx.field(static=True, default=0.8)
+    dt_cap: float = eqx.field(static=True, default=0.01)
+    dt: float | None = eqx.field(static=True, default=None)
+    fixed: tuple = eqx.field(static=True, default=())
 
-    def __post_init__(self):
+    def __check_init__(self):
         if not isinstance(self.template, (AbstractModel, Experiment)):
             raise ValueError(f"Simulator.template must be a model or an Experiment (got {type(self.template).__name__})")
         if isinstance(self.template, AbstractModel) and (self.steps < 1 or not 0 <= self.window <= self.steps):

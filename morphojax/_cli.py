@@ -65,12 +65,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _contributed():
-    out = list(COMMANDS)
-    return out
+    """Subcommands that live next to their features: sweeps, automata, fitting."""
+    from fitting._cli import register as fit_register
+
+    from ._automata_cli import register as ca_register
+    from ._sweep_cli import register as sweep_register
+
+    return list(COMMANDS) + [("sweep", sweep_register), ("ca", ca_register), ("fit", fit_register)]
 
 
 def _ca_presets():
-    return {}
+    from ._automata_cli import PRESETS as CA_PRESETS
+
+    return CA_PRESETS
 
 
 def _cmd_presets(args):

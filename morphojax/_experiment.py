@@ -186,6 +186,15 @@ class Experiment:
                    figure=d.get("figure", ""), show=d.get("show", "b"), cmap=cmap)
 
 
+# Phases and experiments are pytrees: models, growth and sources are their leaves (so an
+# experiment can be passed through jax.jit and vmapped over), the rest is static data.
+jax.tree_util.register_dataclass(
+    Phase, data_fields=["model", "growth", "sources"],
+    meta_fields=["steps", "dt", "boundary", "stencil", "bounds", "add_species", "keep", "frames", "name", "capacity"])
+jax.tree_util.register_dataclass(
+    Experiment, data_fields=["phases"], meta_fields=["name", "initial", "description", "figure", "show", "cmap"])
+
+
 @dataclasses.dataclass
 class Result:
     """What `run_experiment` returns: the final state, the experiment, snapshots and timings.
