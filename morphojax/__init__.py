@@ -23,8 +23,10 @@ from ._simulate import Barrier, SimulationError, rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, run_experiment
 from ._io import load_npz, save_npz
-from ._render import Gradient, montage, render, save_png, to_image
+from ._render import Gradient, montage, render, render_experiment, save_png, to_image
 from ._presets import PRESETS, preset
+from ._descriptors import Descriptors, describe, relative_change
+from ._sweep import Member, SweepResult, load_sweep, map_image, parameter_map, sweep
 from ._automata import (
     YOUNG_P,
     AbstractAutomaton,
@@ -55,6 +57,8 @@ __all__ = [
     "changed_fraction",
     "Composite",
     "constant_state",
+    "describe",
+    "Descriptors",
     "DISTRIBUTIONS",
     "Experiment",
     "glider",
@@ -70,12 +74,16 @@ __all__ = [
     "LIFE_RULES",
     "LifeLike",
     "load_npz",
+    "load_sweep",
+    "map_image",
     "max_stable_dt",
+    "Member",
     "model_from_name",
     "montage",
     "one_hot_cells",
     "order_parameter",
     "paper_state",
+    "parameter_map",
     "parse_rule",
     "Phase",
     "preset",
@@ -83,7 +91,9 @@ __all__ = [
     "random_cells",
     "random_state",
     "Reinforcement",
+    "relative_change",
     "render",
+    "render_experiment",
     "Result",
     "rollout",
     "run_experiment",
@@ -97,6 +107,8 @@ __all__ = [
     "species_mesh",
     "State",
     "STENCILS",
+    "sweep",
+    "SweepResult",
     "thesis_state",
     "to_image",
     "Turing",

@@ -4,7 +4,10 @@
 - `dark_fraction`: the share of the lattice in the dark phase (below an Otsu threshold);
 - spot statistics: number and mean area of connected bright (or dark) regions, counted
   with the lattice's periodic wrap when the boundary is toroidal;
-- `classify`: uniform / spots / inverted spots / stripes-labyrinth / unstable (NaN).
+- `classify`: uniform / spots / inverted spots / stripes-labyrinth / unstable (NaN);
+- `relative_change`: how much a run still moved over its last steps (RMS change over the
+  pattern's contrast), and `settled` = that change below a tolerance. It works on NumPy
+  and on JAX arrays (`xp=jax.numpy`), so sweeps compute it inside the compiled batch.
 """
 
 from __future__ import annotations
@@ -125,28 +128,39 @@ class Descriptors:
     contrast: float
     pattern: str
     finite: bool
+    change: float = float("nan")  # relative change over the last steps (NaN when not measured)
+    settled: bool | None = None  # change < settle_tol (None when not measured)
 
     def as_dict(self):
         return dataclasses.asdict(self)
 
 
 PATTERNS = ("uniform", "spots", "inverted spots", "stripes-labyrinth", "unstable")
+SETTLE_TOL = 0.05  # default: settled when the last steps moved the pattern by < 5% of its contrast
 
 
-def describe(x, wrap: bool = True, uniform_tol: float = 1e-3) -> Descriptors:
+def describe(x, wrap: bool = True, uniform_tol: float = 1e-3, previous=None,
+             settle_tol: float = SETTLE_TOL) -> Descriptors:
     """Descriptors of a 2D pattern (see the module docstring).
 
     `uniform_tol` is the relative range (max - min) / max(|mean|, 1) below which the field
     counts as uniform. Spots are bright regions on a dark background; inverted spots (holes)
     are dark regions on a bright background; a pattern is "spots" when the bright phase is
     the minority and falls apart into many compact pieces, and a labyrinth otherwise.
+
+    `previous`: the same field some steps earlier; then `change` is `relative_change(previous,
+    x)` and `settled` is `change < settle_tol` (otherwise NaN and None).
     """
     x = np.asarray(x, float)
+    change, settled = float("nan"), None
+    if previous is not None:
+        change = float(relative_change(previous, x, floor=uniform_tol))
+        settled = bool(change < settle_tol)
     if not np.isfinite(x).all():
-        return Descriptors(np.nan, np.nan, 0, np.nan, 0, np.nan, np.nan, "unstable", False)
+        return Descriptors(np.nan, np.nan, 0, np.nan, 0, np.nan, np.nan, "unstable", False, change, False)
     contrast = float(np.ptp(x))
     if contrast <= uniform_tol * max(abs(float(x.mean())), 1.0):
-        return Descriptors(np.nan, 0.0, 0, 0.0, 0, 0.0, contrast, "uniform", True)
+        return Descriptors(np.nan, 0.0, 0, 0.0, 0, 0.0, contrast, "uniform", True, change, settled)
     t = threshold(x)
     bright = x >= t
     _, spot_areas = regions(bright, wrap)
@@ -163,7 +177,27 @@ def describe(x, wrap: bool = True, uniform_tol: float = 1e-3) -> Descriptors:
         contrast=contrast,
         pattern=pattern,
         finite=True,
+        change=change,
+        settled=settled,
     )
+
+
+
+def relative_change(previous, last, xp=np, floor: float = 1e-3):
+    """How much a field moved between two times, relative to its own contrast.
+
+    Per species (the last two axes are the lattice, any leading axes are species), the RMS
+    of `last - previous` divided by the standard deviation of `last`, floored at
+    `floor * max(|mean(last)|, 1)` (so a field relaxing to a constant does not divide by
+    zero); the largest value over the species. 0 for a frozen pattern, about 1 or more
+    when the pattern is still being rearranged; NaN or Inf when a field is not finite.
+    `xp=jax.numpy` gives the same number inside compiled code.
+    """
+    prev, last = xp.asarray(previous), xp.asarray(last)
+    axes = (-2, -1)
+    rms = xp.sqrt(xp.mean((last - prev) ** 2, axis=axes))
+    scale = xp.maximum(xp.std(last, axis=axes), floor * xp.maximum(xp.abs(xp.mean(last, axis=axes)), 1.0))
+    return xp.max(rms / scale)
 
 
 def compactness(labels, wrap: bool = True) -> np.ndarray:
