@@ -40,6 +40,10 @@ class StatsConfig:
     lags: tuple = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
     normalise_quantiles: tuple = (0.02, 0.98)
     softness: float = 0.05
+    # compare pigment maps: each field is softly thresholded at its own Otsu threshold
+    # (sigmoid of width `softness`) before the statistics, so a photo's shading and fur
+    # texture and a model's concentration profile do not decide the fit
+    binarise: bool = False
     orientation: bool = False
     # Typical seed-to-seed standard deviation of each group (measured on 64x64 Turing
     # patterns): residuals are divided by these, so the distance is in units of noise.
@@ -64,6 +68,18 @@ def normalise(x, cfg: StatsConfig = StatsConfig()):
     q = jnp.quantile(x, jnp.array([lo_q, hi_q], x.dtype))
     span = jnp.maximum(q[1] - q[0], 1e-6 * (jnp.abs(q[1]) + 1.0))
     return jnp.clip((x - q[0]) / span, 0.0, 1.0)
+
+
+def otsu(z, bins: int = 64):
+    """Otsu's threshold of values in [0, 1] (maximal between-class variance), in JAX."""
+    hist = jnp.histogram(z, bins=bins, range=(0.0, 1.0))[0].astype(z.dtype)
+    centres = (jnp.arange(bins, dtype=z.dtype) + 0.5) / bins
+    w0 = jnp.cumsum(hist)
+    w1 = jnp.sum(hist) - w0
+    m0 = jnp.cumsum(hist * centres) / jnp.maximum(w0, 1.0)
+    m1 = (jnp.sum(hist * centres) - jnp.cumsum(hist * centres)) / jnp.maximum(w1, 1.0)
+    between = w0 * w1 * (m0 - m1) ** 2
+    return (jnp.argmax(between).astype(z.dtype) + 1.0) / bins
 
 
 @functools.lru_cache(maxsize=64)
@@ -109,6 +125,8 @@ def texture_stats(x, cfg: StatsConfig = StatsConfig()) -> dict:
     if x.ndim != 2:
         raise ValueError(f"texture_stats needs a 2D field (got shape {x.shape})")
     z = normalise(x, cfg)
+    if cfg.binarise:
+        z = jax.nn.sigmoid((z - jax.lax.stop_gradient(otsu(z))) / cfg.softness)
     shape = tuple(z.shape)
     centred = z - jnp.mean(z)
     var = jnp.mean(centred**2) + 1e-12

@@ -247,11 +247,11 @@ class Turing(AbstractModel):
             lower=self.lower, upper=self.upper,
         )
 
-    def reaction(self, x):
-        return self.as_bard().reaction(x)
+    def reaction(self, x):  # Bard's reaction with alpha = 16, beta = 12, sp = 1
+        return bard_reaction(x, self.ALPHA, self.BETA, 1.0)
 
-    def diffusion(self):
-        return self.as_bard().diffusion()
+    def diffusion(self):  # Bard's (Da, Db) = (r s, s)
+        return _species_stack((self.ratio * self.scale, self.scale), 2, "Turing diffusion")
 
 
 class GrayScott(AbstractModel):

@@ -214,15 +214,14 @@ def _check_inputs_eager(model, state, steps, dt, cfg, growth, check_dt, bounds):
     check_finite(dt, "dt")
     check_range(dt, "dt", low=0.0, low_open=True)
     cap = state.capacity
-    for name, leaf in _named_leaves(model):
-        if getattr(leaf, "ndim", 0) >= 2:
-            try:
-                jnp.broadcast_shapes(leaf.shape[-2:], cap)
-            except ValueError:
-                raise ValueError(
-                    f"parameter map {name} has shape {leaf.shape[-2:]}, which does not broadcast to the lattice "
-                    f"{cap} (rows, cols)"
-                ) from None
+    for name, leaf in _map_leaves(model):
+        try:
+            jnp.broadcast_shapes(leaf.shape[-2:], cap)
+        except ValueError:
+            raise ValueError(
+                f"parameter map {name} has shape {leaf.shape[-2:]}, which does not broadcast to the lattice "
+                f"{cap} (rows, cols)"
+            ) from None
     if is_concrete(state.fields):
         if not np.isfinite(np.asarray(state.fields)).all():
             raise ValueError("state contains NaN or infinite values")
@@ -250,9 +249,13 @@ def _check_inputs_eager(model, state, steps, dt, cfg, growth, check_dt, bounds):
             )
 
 
-def _named_leaves(model):
-    params = model.parameters() if hasattr(model, "parameters") else {}
-    return [(f"{type(model).__name__}.{k}", v) for k, v in params.items()]
+def _map_leaves(model):
+    """(name, array) of the model's spatially varying parameters (arrays with 2+ dims)."""
+    out = []
+    for path, leaf in jax.tree_util.tree_leaves_with_path(model):
+        if getattr(leaf, "ndim", 0) >= 2:
+            out.append((f"{type(model).__name__}{jax.tree_util.keystr(path)}", leaf))
+    return out
 
 
 def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources, key, check_dt, origin=None):
