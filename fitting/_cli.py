@@ -41,11 +41,14 @@ def register(subparsers) -> None:
     p.add_argument("--channel", default="luminance", help="luminance, red, green, blue, alpha, saturation, value")
     p.add_argument("--invert", action="store_true", help="dark pigment as high values (e.g. black spots = high B)")
     p.add_argument("--cell-pixels", type=float, default=None, help="photo pixels per lattice cell (default: estimated)")
+    p.add_argument("--no-binarise", action="store_true",
+                   help="compare raw intensities instead of soft pigment maps (the default for photos)")
+    p.add_argument("--orientation", action="store_true", help="add the structure-tensor orientation (stripes)")
     p.add_argument("--shape", type=int, nargs=2, default=(64, 64), metavar=("ROWS", "COLS"))
     p.add_argument("--steps", type=int, default=8000)
     p.add_argument("--window", type=int, default=1000, help="steps differentiated at the end of each run")
     p.add_argument("--seeds", type=int, default=4, help="simulations averaged per evaluation")
-    p.add_argument("--design", type=int, default=24, help="points per design round")
+    p.add_argument("--design", type=int, default=None, help="points per design round (default 12 per parameter)")
     p.add_argument("--rounds", type=int, default=2, help="refinement rounds of the design")
     p.add_argument("--keep", type=int, default=2, help="local searches from the best design points")
     p.add_argument("--method", default="bfgs", help="bfgs, lm, nelder-mead or gd")
@@ -73,6 +76,7 @@ def run(args) -> int:
     result = fitting.fit(target, model=args.model, fit=args.fit, fixed=fixed, bounds=bounds, shape=tuple(args.shape),
                          steps=args.steps, window=args.window, seeds=args.seeds, seed=args.seed, n_design=args.design,
                          rounds=args.rounds, keep=args.keep, method=args.method, max_steps=args.max_steps,
+                         stats=fitting.StatsConfig(binarise=not args.no_binarise, orientation=args.orientation),
                          progress=not args.no_progress)
     result.save_json(args.json)
     if args.preview is not None:

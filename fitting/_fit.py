@@ -178,7 +178,7 @@ class _Recorder:
 
 def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=None, shape=(64, 64),
         steps: int = 8000, window: int = 1000, seeds: int = 4, seed: int = 0, design: str = "lhs",
-        n_design: int = 24, rounds: int = 2, keep: int = 2, method: str = "bfgs", max_steps: int = 40, fallback: bool = True,
+        n_design: int | None = None, rounds: int = 2, keep: int = 2, method: str = "bfgs", max_steps: int = 40, fallback: bool = True,
         stats: StatsConfig = StatsConfig(), boundary: str = "wrap", species=None, batch_size: int = 8,
         noise_seeds: int = 8, learning_rate: float = 0.05, length_scale: str | None = "scale",
         progress: bool = False,
@@ -198,7 +198,7 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
         seeds: simulations averaged per evaluation (vmapped); seed: the fit's random seed
             (seeds, design).
         design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
-            n_design points, then `rounds` Latin hypercubes of n_design points in boxes
+            n_design points (default 12 per fitted parameter), then `rounds` Latin hypercubes of n_design points in boxes
             (halving each round) around the best `keep`, which then start local searches.
         method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
             iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
@@ -211,6 +211,8 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
     Returns:
         `FitResult` (see its docstring); `result.save_json(path)`, `result.preview(path)`.
     """
+    n_fit = len(fit.split(",")) if isinstance(fit, str) else len(fit)
+    n_design = 12 * max(n_fit, 1) if n_design is None else n_design
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     for name, value, low in (("seeds", seeds, 1), ("n_design", n_design, 1), ("keep", keep, 1),

@@ -75,19 +75,27 @@ def normalise(x: np.ndarray, quantiles=(0.02, 0.98)) -> np.ndarray:
 
 def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 8.0) -> float:
     """Photo pixels per lattice cell such that the dominant wavelength spans `wavelength_cells`."""
-    from morphojax._descriptors import dominant_wavelength
-
     x = pixels
     factor = 1
     while max(x.shape) > 512:  # the spectrum's peak needs no more resolution than this
         x = x[: x.shape[0] // 2 * 2, : x.shape[1] // 2 * 2]
         x = 0.25 * (x[::2, ::2] + x[1::2, ::2] + x[::2, 1::2] + x[1::2, 1::2])
         factor *= 2
-    x = x - x.mean()
-    window = np.outer(np.hanning(x.shape[0]), np.hanning(x.shape[1]))  # no edge artefacts
-    lam = dominant_wavelength(x * window) * factor
-    if not np.isfinite(lam) or lam <= 2:
+    from morphojax._descriptors import radial_power_spectrum
+    from scipy.ndimage import gaussian_filter
+
+    # remove shading and illumination (scales much larger than the pattern), taper the edges
+    x = x - gaussian_filter(x, sigma=min(x.shape) / 8.0, mode="reflect")
+    window = np.outer(np.hanning(x.shape[0]), np.hanning(x.shape[1]))
+    freq, power = radial_power_spectrum(x * window)
+    # look for the peak between 4 periods per crop and 4 pixels per period
+    band = (freq >= 4.0 / min(x.shape)) & (freq <= 0.25)
+    if not band.any() or not (power[band] > 0).any():
         raise ValueError("could not measure a dominant wavelength in the target; give cell_pixels explicitly")
+    k = int(np.flatnonzero(band)[np.argmax(power[band])])
+    lo, hi = max(1, k - 1), min(len(power), k + 2)
+    f_peak = float((freq[lo:hi] * power[lo:hi]).sum() / power[lo:hi].sum())
+    lam = factor / f_peak
     return float(lam / wavelength_cells)
 
 

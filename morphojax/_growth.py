@@ -204,10 +204,14 @@ class Growth(eqx.Module):
 
 
 def _draw_weighted(key, n, count: int, profile, cap: int):
+    """`count` indices in [0, n) with probabilities proportional to `profile`, by inverting
+    the cumulative distribution (one uniform number per index drawn)."""
     rel = (jnp.arange(cap) + 0.5) / n
     p = jnp.where(jnp.arange(cap) < n, profile(rel), 0.0)
-    logits = jnp.where(p > 0, jnp.log(jnp.where(p > 0, p, 1.0)), -jnp.inf)
-    return jax.random.categorical(key, logits, shape=(count,)).astype(jnp.int32)
+    cdf = jnp.cumsum(p)
+    u = jax.random.uniform(key, (count,), cdf.dtype) * cdf[-1]
+    idx = jnp.searchsorted(cdf, u, side="right")
+    return jnp.clip(idx, 0, n - 1).astype(jnp.int32)
 
 
 def _weights(values, name):
@@ -222,14 +226,18 @@ def _weights(values, name):
 
 
 def _insert(x, idx, axis):
-    """Duplicate, in every line across `axis`, the cell at `idx[line]`; later cells shift by one."""
-    if axis == -2:  # idx has one entry per column
-        i = jnp.arange(x.shape[-2])[:, None]
-        src = i - (i > idx[None, :])
-        return jnp.take_along_axis(x, jnp.broadcast_to(src, x.shape), axis=-2)
-    j = jnp.arange(x.shape[-1])[None, :]
-    src = j - (j > idx[:, None])
-    return jnp.take_along_axis(x, jnp.broadcast_to(src, x.shape), axis=-1)
+    """Duplicate, in every line across `axis`, the cell at `idx[line]`; later cells shift by one.
+
+    Written as a select between the array and its copy shifted by one cell (no gather),
+    which XLA fuses into a single pass.
+    """
+    if axis == -2:  # idx: the dividing row of each column
+        shifted = jnp.concatenate([x[..., :1, :], x[..., :-1, :]], axis=-2)  # cell i <- cell i - 1
+        after = jnp.arange(x.shape[-2])[:, None] > idx[None, :]
+    else:  # idx: the dividing column of each row
+        shifted = jnp.concatenate([x[..., :, :1], x[..., :, :-1]], axis=-1)
+        after = jnp.arange(x.shape[-1])[None, :] > idx[:, None]
+    return jnp.where(after, shifted, x)
 
 
 def _interpolate(x, size, method):
@@ -324,24 +332,24 @@ class Source(eqx.Module):
             raise ValueError(f"Source mask has shape {self.mask.shape}; it must match the capacity {state.capacity}")
         return Source(self.species, self.amplitude, self.region if self.mask is None else self.mask, index=idx)
 
-    def apply(self, x, size, key):
-        rows, cols = x.shape[-2:]
-        noise = jax.random.uniform(key, (rows, cols), x.dtype) * self.amplitude
+    def production(self, size, key, like):
+        """This step's production: U[0, amplitude) on the region, zero elsewhere (shaped like `like`)."""
+        rows, cols = like.shape[-2:]
+        dtype = like.dtype
         r = jnp.arange(rows)[:, None]
         c = jnp.arange(cols)[None, :]
         if self.region == "mask":
-            weight = self.mask
-        elif self.region == "all":
-            weight = ((r < size[0]) & (c < size[1])).astype(x.dtype)
-        elif self.region == "center-row":
-            weight = ((r == size[0] // 2) & (c < size[1])).astype(x.dtype)
-        elif self.region == "top-row":
-            weight = ((r == 0) & (c < size[1])).astype(x.dtype)
-        elif self.region == "bottom-row":
-            weight = ((r == size[0] - 1) & (c < size[1])).astype(x.dtype)
-        else:
-            weight = ((c == size[1] // 2) & (r < size[0])).astype(x.dtype)
-        return x.at[self.index].add(noise * weight)
+            return jax.random.uniform(key, (rows, cols), dtype) * self.amplitude * self.mask
+        if self.region == "all":
+            weight = (r < size[0]) & (c < size[1])
+            return jax.random.uniform(key, (rows, cols), dtype) * self.amplitude * weight
+        # a single row or column: draw only the numbers it needs
+        if self.region in ("center-row", "top-row", "bottom-row"):
+            at = {"center-row": size[0] // 2, "top-row": 0, "bottom-row": size[0] - 1}[self.region]
+            line = jax.random.uniform(key, (1, cols), dtype) * self.amplitude
+            return jnp.where((r == at) & (c < size[1]), line, 0.0)
+        line = jax.random.uniform(key, (rows, 1), dtype) * self.amplitude
+        return jnp.where((c == size[1] // 2) & (r < size[0]), line, 0.0)
 
 
 def growth_to_dict(g: Growth) -> dict:

@@ -70,22 +70,32 @@ def pad(x, boundary: str, size=None):
     if size is None:
         return jnp.pad(x, widths, mode="wrap" if boundary == "wrap" else "edge")
     h, w = size[0], size[1]
-    p = jnp.pad(x, widths)
-    # rows first (on the interior columns), then columns over the full height, so the
-    # corner ghosts come out right for both boundaries.
+    q = _zero_ring(x)
+    # ghost rows then columns, written with selects against broadcast vectors (one fused
+    # pass; the corner ghosts come from the ghost rows, right for both boundaries)
     if boundary == "wrap":
-        top, bottom = _row(p, h), _row(p, 1)
+        top, bottom, left, right = h, 1, w, 1
     else:
-        top, bottom = _row(p, 1), _row(p, h)
-    p = _set_row(p, 0, top)
-    p = _set_row(p, h + 1, bottom)
-    if boundary == "wrap":
-        left, right = _col(p, w), _col(p, 1)
-    else:
-        left, right = _col(p, 1), _col(p, w)
-    p = _set_col(p, 0, left)
-    p = _set_col(p, w + 1, right)
-    return p
+        top, bottom, left, right = 1, h, 1, w
+    i = jnp.arange(q.shape[-2])[:, None]
+    j = jnp.arange(q.shape[-1])[None, :]
+
+    def with_row_ghosts(v):
+        return jnp.where(i[: v.shape[-2]] == 0, _row(v, top), jnp.where(i[: v.shape[-2]] == h + 1, _row(v, bottom), v))
+
+    cols_l = with_row_ghosts(_col(q, left))
+    cols_r = with_row_ghosts(_col(q, right))
+    rows = with_row_ghosts(q)
+    return jnp.where(j == 0, cols_l, jnp.where(j == w + 1, cols_r, rows))
+
+
+def _zero_ring(x):
+    """`jnp.pad(x, 1)` on the last two axes, written as concatenations: XLA:CPU fuses a
+    concatenate into the stepping loop at full speed but not a pad (measured 3x slower)."""
+    zr = jnp.zeros_like(x[..., :1, :])
+    x = jnp.concatenate([zr, x, zr], axis=-2)
+    zc = jnp.zeros_like(x[..., :1])
+    return jnp.concatenate([zc, x, zc], axis=-1)
 
 
 def _row(p, i):
@@ -94,14 +104,6 @@ def _row(p, i):
 
 def _col(p, j):
     return jax.lax.dynamic_slice_in_dim(p, j, 1, axis=p.ndim - 1)
-
-
-def _set_row(p, i, row):
-    return jax.lax.dynamic_update_slice_in_dim(p, row, i, axis=p.ndim - 2)
-
-
-def _set_col(p, j, col):
-    return jax.lax.dynamic_update_slice_in_dim(p, col, j, axis=p.ndim - 1)
 
 
 def laplacian_padded(p, stencil: str = "nine-point"):

@@ -203,7 +203,7 @@ def test_cli_fit(tmp_path, small_fit):
     Image.fromarray((z * 255).astype(np.uint8), "L").resize((160, 160), Image.NEAREST).save(tmp_path / "t.png")
     code = main(["fit", str(tmp_path / "t.png"), "--model", "turing", "--fit", "ratio,scale", "--cell-pixels", "4",
                  "--shape", "32", "32", "--steps", "3000", "--window", "300", "--seeds", "2", "--design", "6",
-                 "--rounds", "0", "--keep", "1", "--max-steps", "6", "--bounds", "ratio=4:40", "--bounds", "scale=0.5:3",
+                 "--rounds", "0", "--keep", "1", "--max-steps", "6", "--bounds", "ratio=4:40", "--bounds", "scale=0.5:3", "--no-binarise",
                  "--json", str(tmp_path / "out.json"),
                  "--preview", str(tmp_path / "out.png"), "--no-progress"])
     assert code == 0
