@@ -367,7 +367,22 @@ def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources
     return cfg, dt, sources
 
 
-def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: float = 1.125, multiple: int = 8):
+SMALL_LATTICE = 160 * 160  # at or below this capacity a growing run uses a single block
+
+
+def _ladder(first: int, last: int, cap: int, ratio: float, multiple: int) -> list[int]:
+    """Block rows from `first` to `last`, each about `ratio` times the previous, rounded up
+    to a multiple of `multiple` and capped at `cap` (one block when ratio is infinite)."""
+    ladder, r = [], first
+    while True:
+        r = min(-(-r // multiple) * multiple, cap)
+        ladder.append(r)
+        if r >= last:
+            return ladder
+        r = max(r + 1, int(r * ratio)) if math.isfinite(ratio) else last
+
+
+def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: float = 1.25, multiple: int = 8):
     """Blocks for a run on a dynamic active region, and which one each chunk uses.
 
     A chunk of `per` steps computes on the top-left block of the lattice that holds the
@@ -379,6 +394,8 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
     """
     if not is_concrete(state.size, state.step, origin) or (growth is not None and not is_concrete(growth.rate, dt)):
         return None, None
+    if state.capacity[0] * state.capacity[1] <= SMALL_LATTICE:
+        ratio = float("inf")  # small lattices: one block, one compiled step
     with jax.ensure_compile_time_eval():
         h, w = state.shape
         done = 0 if origin is None else int(state.step) - int(origin)
@@ -387,13 +404,7 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
         need = [min(h + (growth.expansions(e, dt, done) if growth is not None else 0), cap_r) for e in ends]
     if not need:
         return None, None
-    ladder, r = [], need[0]
-    while True:
-        r = min(-(-r // multiple) * multiple, cap_r)
-        ladder.append(r)
-        if r >= need[-1]:
-            break
-        r = max(r + 1, int(r * ratio))
+    ladder = _ladder(need[0], need[-1], cap_r, ratio, multiple)
     blocks = tuple((r, min(r - h + w, cap_c)) for r in ladder)
     schedule = tuple(next(i for i, b in enumerate(ladder) if b >= n) for n in need)
     return blocks, schedule
@@ -410,6 +421,8 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
     """
     if growth is None or not is_concrete(state.size, state.step, origin, growth.rate, dt) or not steps:
         return None, None
+    if state.capacity[0] * state.capacity[1] <= SMALL_LATTICE:
+        ratio = float("inf")  # small lattices: one block, one compiled step (compiling costs more)
     with jax.ensure_compile_time_eval():
         period = growth.period_steps(dt)
         done = int(state.step) - int(state.step if origin is None else origin)
@@ -428,13 +441,7 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
     for n, expand in segments:
         grown = min(grown + int(expand), cap_r)
         sizes.append(grown)
-    ladder, r = [], sizes[0]
-    while True:
-        r = min(-(-r // multiple) * multiple, cap_r)
-        ladder.append(r)
-        if r >= sizes[-1]:
-            break
-        r = max(r + 1, int(r * ratio))
+    ladder = _ladder(sizes[0], sizes[-1], cap_r, ratio, multiple)
     blocks = tuple((r, min(r - h + w, cap_c)) for r in ladder)
     groups = []
     for (n, expand), need in zip(segments, sizes):
