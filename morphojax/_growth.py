@@ -114,19 +114,23 @@ class Growth(eqx.Module):
                 f"{cap[0]}x{cap[1]}; give the state a larger capacity (state.with_capacity)"
             )
 
-    def maybe_expand(self, x, size, k, dt, key, overflow):
-        """Inside the step: expand when phase step `k` (1-based) opens a period."""
+    def maybe_expand(self, p, size, k, dt, key, overflow, repad):
+        """Inside the step: expand when phase step `k` (1-based) opens a period.
+
+        `p` is the ghost-padded array; `repad` pads the expanded interior again.
+        """
         period = self.period(dt)
         due = (period > 0) & ((k - 1) % jnp.maximum(period, 1) == 0)
-        room = (size[0] < x.shape[-2]) & (size[1] < x.shape[-1])
+        room = (size[0] < p.shape[-2] - 2) & (size[1] < p.shape[-1] - 2)
         do = due & room
 
         def grow(args):
-            x, size = args
-            return self.expand(x, size, key)
+            p, size = args
+            x, size = self.expand(p[..., 1:-1, 1:-1], size, key)
+            return repad(x), size
 
-        x, size = jax.lax.cond(do, grow, lambda a: a, (x, size))
-        return x, size, overflow | (due & ~room)
+        p, size = jax.lax.cond(do, grow, lambda a: a, (p, size))
+        return p, size, overflow | (due & ~room)
 
     # ---- one expansion -----------------------------------------------------------------
     def expand(self, x, size, key):

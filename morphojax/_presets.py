@@ -159,7 +159,7 @@ GRAY_SCOTT = {
     # name: (F, k, what)
     "gray-scott-mitosis": (0.0367, 0.0649, "self-replicating spots"),
     "gray-scott-coral": (0.0545, 0.062, "coral growth / labyrinth"),
-    "gray-scott-worms": (0.078, 0.061, "worms / stripes"),
+    "gray-scott-worms": (0.046, 0.063, "worms"),
     "gray-scott-holes": (0.039, 0.058, "negative spots"),
 }
 

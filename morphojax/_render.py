@@ -94,7 +94,9 @@ def normalise(x, vmin=None, vmax=None) -> np.ndarray:
     if hi < lo:
         raise ValueError(f"vmax must be >= vmin (got vmin={lo:g}, vmax={hi:g})")
     span = hi - lo
-    out = np.zeros_like(x) if span == 0 else (x - lo) / span
+    # a (numerically) constant field renders flat rather than as amplified rounding noise
+    flat = span <= 1e-9 * max(1.0, abs(lo), abs(hi)) and vmin is None and vmax is None
+    out = np.zeros_like(x) if span == 0 or flat else (x - lo) / span
     return np.clip(np.where(finite, out, 0.0), 0.0, 1.0)
 
 
