@@ -43,15 +43,15 @@ def test_run_writes_png_and_npz_and_is_deterministic(tmp_path, capsys):
 
 
 def test_frames_and_resume(tmp_path):
-    out = tmp_path / "sq.png"
-    assert main(["run", "squirrel", "--quick", "--frames", "--checkpoint-every", "3000", "--out", str(out),
+    out = tmp_path / "sp.png"
+    assert main(["run", "fig4-r12-lb", "--quick", "--frames", "--checkpoint-every", "1000", "--out", str(out),
                  "--no-progress"]) == 0
-    frames = sorted((tmp_path / "sq_frames").glob("*.png"))
-    assert len(frames) >= 4 and (tmp_path / "sq_frames" / "frames.png").exists()
+    frames = sorted((tmp_path / "sp_frames").glob("*.png"))
+    assert len(frames) >= 4 and (tmp_path / "sp_frames" / "frames.png").exists()
     final, _ = _arrays(out.with_suffix(".npz"))
-    # resume a checkpoint taken mid-run: same final arrays
+    # resume a checkpoint taken mid-run: same final arrays (growing runs: see test_experiment)
     state, meta = mj.load_npz(out.with_suffix(".npz"))
-    partial = mj.run_experiment(mj.Experiment.from_dict(meta["experiment"]), seed=0, stop_after=4500)
+    partial = mj.run_experiment(mj.Experiment.from_dict(meta["experiment"]), seed=0, stop_after=1000)
     ckpt = tmp_path / "partial.npz"
     partial.save(ckpt)
     assert main(["resume", str(ckpt), "--out", str(tmp_path / "resumed.png"), "--no-progress"]) == 0
