@@ -145,6 +145,44 @@ class Growth(eqx.Module):
         x = _insert(x, cols, axis=-1)
         return x, size + 1
 
+    def birth_times(self, shape, expansions: int, key):
+        """Which expansion created each cell: the paper's Fig. 3 as an array.
+
+        Starts from a `shape` lattice of original cells (0) and applies `expansions`
+        expansions with this growth's law and weights (the draws `simulate` makes);
+        the cell a division inserts (the lower / right copy) is labelled with the number of
+        its expansion (1, 2, ...). Returns an int32 JAX array of shape (rows + expansions,
+        cols + expansions). Expansion k adds cols + k - 1 cells (the new row) and
+        rows + k cells (the new column). Division growth only.
+        """
+        if self.method != "division":
+            raise ValueError(f"birth_times needs growth method 'division' (got {self.method!r})")
+        check_shape = tuple(int(s) for s in shape)
+        if len(check_shape) != 2 or min(check_shape) < 1 or int(expansions) < 0:
+            raise ValueError(f"birth_times: shape must be two sizes >= 1 and expansions >= 0 "
+                             f"(got {shape}, {expansions})")
+        (h, w), n = check_shape, int(expansions)
+        H, W = h + n, w + n
+        ids = jnp.arange(H * W, dtype=jnp.int32).reshape(H, W)  # distinct labels to find the copies
+
+        def one(carry, k):
+            birth, size = carry
+            kr, kc = jax.random.split(jax.random.fold_in(key, k))
+            for axis, kk, weights in ((-2, kr, self.row_weights), (-1, kc, self.col_weights)):
+                n_along = size[0] if axis == -2 else size[1]
+                count, cap = (W, H) if axis == -2 else (H, W)
+                x = _insert(jnp.stack([birth, ids]), self.draw(kk, n_along, count, cap, weights), axis)
+                prev = jnp.roll(x[1], 1, axis=axis)
+                copy = x[1] == prev
+                copy = copy.at[0, :].set(False) if axis == -2 else copy.at[:, 0].set(False)
+                birth = jnp.where(copy, k + 1, x[0])
+                size = size.at[0 if axis == -2 else 1].add(1)
+            return (birth, size), None
+
+        start = jnp.zeros((H, W), jnp.int32)
+        (birth, _), _ = jax.lax.scan(one, (start, jnp.array([h, w], jnp.int32)), jnp.arange(n, dtype=jnp.int32))
+        return birth
+
     def draw(self, key, n, count: int, cap: int, weights=None):
         """`count` dividing indices in [0, n) following the law; n (maybe traced) <= cap."""
         n = jnp.asarray(n)

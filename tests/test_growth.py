@@ -76,6 +76,19 @@ def test_final_size_counts_expansions():
     assert not fields[:, 10 + expected:, :].any() and not fields[:, :, 12 + expected:].any()
 
 
+@pytest.mark.parametrize("distribution", mj.DISTRIBUTIONS)
+def test_birth_times_count_every_inserted_cell(distribution):
+    """Fig. 3 as an array: expansion k inserts a row of cols + k - 1 cells and a column of rows + k."""
+    h, w, n = 9, 13, 6
+    birth = np.asarray(mj.Growth(1.0, distribution).birth_times((h, w), n, jax.random.key(3)))
+    assert birth.shape == (h + n, w + n)
+    counts = np.bincount(birth.ravel(), minlength=n + 1)
+    np.testing.assert_array_equal(counts, [h * w] + [(w + k - 1) + (h + k) for k in range(1, n + 1)])
+    assert birth.min() == 0 and birth.max() == n
+    with pytest.raises(ValueError, match="birth_times"):
+        mj.Growth(1.0, method="nearest").birth_times((h, w), n, jax.random.key(3))
+
+
 def test_capacity_overflow_is_an_error_before_the_run():
     state = mj.paper_state(jax.random.key(0), (10, 10), capacity=(15, 30))
     with pytest.raises(ValueError, match=r"beyond the capacity 15x30"):
