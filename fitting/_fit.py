@@ -229,6 +229,10 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
     names = list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
     sim.check_names(names + [k for k, _ in sim.fixed])
     space = ParamSpace.build(names, bounds)
+    rates = [i for i, n in enumerate(names) if n.rpartition(":")[2] == "growth_rate"]
+    if rates:  # fitted growth rates: compare the window every point reaches, check the room
+        sim = dataclasses.replace(sim, compare=sim.final_shape({names[i]: space.low[i] for i in rates}))
+        sim.check_capacity({names[i]: space.high[i] for i in rates})
     tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(target.field, jnp.float32), stats))
     keys = jax.random.split(jax.random.key(seed + 1), seeds)
 

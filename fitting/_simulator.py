@@ -75,6 +75,13 @@ class Simulator(eqx.Module):
     dt_cap: float = eqx.field(static=True, default=0.01)
     dt: float | None = eqx.field(static=True, default=None)
     fixed: tuple = eqx.field(static=True, default=())
+    compare: tuple | None = eqx.field(static=True, default=None)
+
+    def __post_init__(self):
+        # the compared lattice of an experiment, fixed while the parameters are concrete
+        # (inside compiled fits the growth rates are traced)
+        if self.compare is None and isinstance(self.template, Experiment):
+            self.compare = self.final_shape()
 
     def __check_init__(self):
         if not isinstance(self.template, (AbstractModel, Experiment)):
@@ -157,16 +164,42 @@ class Simulator(eqx.Module):
             field = state.fields[self._species(state.names), :rows, :cols]
         return jnp.where(jnp.isfinite(field), field, 0.0)
 
-    def final_shape(self) -> tuple:
-        """The lattice the compared field lives on (concrete, from the growth schedules)."""
+    def final_shape(self, params: dict | None = None) -> tuple:
+        """The lattice the compared field lives on (concrete, from the growth schedules).
+
+        Experiments: the final lattice of the template (`compare`, fixed when the simulator
+        is made), or with `params` (concrete values) the final lattice they give. When growth
+        rates are fitted, `fit` sets `compare` to the lattice of the lowest rates, so every
+        point compares the same top-left window of its grown lattice.
+        """
         if isinstance(self.template, AbstractModel):
             return tuple(self.shape)
-        rows, cols = self.template.initial.shape
-        for ph in self.template.phases:
+        if params is None and self.compare is not None:
+            return tuple(self.compare)
+        return self._sizes(params)[-1][0]
+
+    def _sizes(self, params) -> list:
+        """(lattice, capacity) after each phase of the experiment, for concrete values."""
+        exp = self.template if params is None else self.build(params)
+        (rows, cols), cap = exp.initial.shape, exp.initial.capacity or exp.initial.shape
+        out = []
+        for ph in exp.phases:
+            cap = ph.capacity or cap
             if ph.growth is not None:
                 n = ph.growth.expansions(ph.steps, ph.dt)
                 rows, cols = rows + n, cols + n
-        return int(rows), int(cols)
+            out.append(((int(rows), int(cols)), tuple(cap)))
+        return out
+
+    def check_capacity(self, params: dict) -> None:
+        """Raise if the growth `params` give (concrete values) needs more than the capacity."""
+        if isinstance(self.template, AbstractModel):
+            return
+        for ph, ((rows, cols), cap) in zip(self.template.phases, self._sizes(params)):
+            if rows > cap[0] or cols > cap[1]:
+                raise ValueError(
+                    f"with {params} phase {ph.name!r} grows the lattice to {rows}x{cols}, beyond its capacity "
+                    f"{cap[0]}x{cap[1]}: lower the growth_rate bounds or give the experiment more capacity")
 
     def describe(self) -> dict:
         from morphojax._io import model_to_dict, to_jsonable

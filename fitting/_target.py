@@ -82,10 +82,10 @@ def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 8.0) -> f
         x = 0.25 * (x[::2, ::2] + x[1::2, ::2] + x[::2, 1::2] + x[1::2, 1::2])
         factor *= 2
     from morphojax._descriptors import radial_power_spectrum
-    from scipy.ndimage import gaussian_filter
+    from skimage.filters import gaussian
 
     # remove shading and illumination (scales much larger than the pattern), taper the edges
-    x = x - gaussian_filter(x, sigma=min(x.shape) / 8.0, mode="reflect")
+    x = x - gaussian(x, sigma=min(x.shape) / 8.0, mode="reflect", preserve_range=True)
     window = np.outer(np.hanning(x.shape[0]), np.hanning(x.shape[1]))
     freq, power = radial_power_spectrum(x * window)
     # look for the peak between 4 periods per crop and 4 pixels per period

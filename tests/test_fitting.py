@@ -173,15 +173,19 @@ def test_gradient_descent_loop_decreases_the_loss():
     assert losses[-1] < losses[0] and np.allclose(np.asarray(z), 3.0, atol=0.5)
 
 
-def test_simulator_with_a_growing_experiment():
+def _growing_experiment():
     from morphojax._experiment import Experiment, Initial, Phase
 
-    exp = Experiment(
+    return Experiment(
         name="grow", initial=Initial("paper", (16, 16)),
         phases=(Phase(mj.Turing(20.0, 1.0), steps=200, dt=0.01, name="static"),
                 Phase(mj.Turing(8.0, 1.0), steps=300, dt=0.01, growth=mj.Growth(1.0), name="growth",
                       capacity=(20, 20))),
     )
+
+
+def test_simulator_with_a_growing_experiment():
+    exp = _growing_experiment()
     sim = fitting.Simulator(exp, window=100)
     assert sim.final_shape() == (19, 19)
     sim.check_names(["ratio", "growth:ratio", "growth_rate"])
@@ -191,6 +195,19 @@ def test_simulator_with_a_growing_experiment():
     assert field.shape == (19, 19) and np.isfinite(np.asarray(field)).all()
     g = jax.grad(lambda r: jnp.mean(sim.run({"ratio": r}, jax.random.key(0)) ** 2))(8.0)
     assert np.isfinite(float(g)) and float(g) != 0.0
+
+
+def test_fit_a_growing_experiment():
+    """`fit` with a multi-phase experiment: a parameter of one phase, growth rates checked."""
+    exp = _growing_experiment()
+    target = np.asarray(fitting.Simulator(exp, window=100).run({"growth:ratio": 9.0}, jax.random.key(42)))
+    with pytest.raises(ValueError, match="beyond its capacity 20x20"):
+        fitting.fit(target, model=exp, fit=["growth_rate"], bounds={"growth_rate": (0.5, 3.0)})
+    res = fitting.fit(target, model=exp, fit=["growth:ratio"], bounds={"growth:ratio": (4.0, 20.0)}, seeds=2,
+                      n_design=6, rounds=0, keep=1, method="nelder-mead", max_steps=4, window=100, noise_seeds=2)
+    assert 5.0 < res.params["growth:ratio"] < 16.0 and np.isfinite(res.loss)
+    assert np.asarray(res.fields["fit"]).shape == (19, 19)
+    assert isinstance(res.model, mj.Experiment) and res.to_json()["params"] == res.params
 
 
 def test_cli_fit(tmp_path, small_fit):
