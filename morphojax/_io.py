@@ -94,17 +94,26 @@ def save_npz(path, state: State, metadata: dict) -> Path:
     return path
 
 
-def load_npz(path) -> tuple[State, dict]:
-    """Read a result written by `save_npz`: (State with its capacity, step and time; metadata)."""
+def read_npz(path, what: str, parse):
+    """Open a morphojax `.npz` and return (metadata, parse(metadata, data)).
+
+    `data` is the open archive; a missing file, or one that is not what `parse` expects
+    (it raises KeyError or ValueError), is a ValueError naming `what` ("result", "sweep").
+    """
     path = Path(path)
     if not path.exists():
-        raise ValueError(f"no such result file: {path}")
+        raise ValueError(f"no such {what} file: {path}")
     try:
         with np.load(path, allow_pickle=False) as data:
             meta = from_jsonable(json.loads(str(data["metadata"])))
-            arrays = [data[f"species_{n}"] for n in meta["species"]]
+            return meta, parse(meta, data)
     except (KeyError, OSError, ValueError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path} is not a morphojax result file ({err})") from err
+        raise ValueError(f"{path} is not a morphojax {what} file ({err})") from err
+
+
+def load_npz(path) -> tuple[State, dict]:
+    """Read a result written by `save_npz`: (State with its capacity, step and time; metadata)."""
+    meta, arrays = read_npz(path, "result", lambda meta, data: [data[f"species_{n}"] for n in meta["species"]])
     capacity = tuple(meta.get("capacity") or arrays[0].shape)
     grows = capacity != tuple(arrays[0].shape)
     state = State.from_arrays(arrays, capacity=capacity if grows else None, names=meta["species"])

@@ -186,38 +186,38 @@ for _n, (_F, _k, _what) in GRAY_SCOTT.items():
 WHIPRAY_CMAP = Gradient([(0.0, "#e9dcc0"), (0.45, "#b89b6e"), (1.0, "#2b1d10")])
 
 
+def _whipray_kind(name, start, grow, dt, spots, grown, spots_steps, description, figure):
+    """Spots formed on a static lattice, then grown at 2.5 expansions per unit time (Figs. 9-10)."""
+    period = round(1.0 / (2.5 * dt))
+    return Experiment(
+        name=name, initial=Initial("paper", start),
+        phases=(
+            Phase(spots, steps=spots_steps, dt=dt, frames=2, name="spots"),
+            Phase(grown, steps=grow * period, dt=dt, growth=Growth(2.5), frames=4, name="growth",
+                  capacity=(start[0] + grow, start[1] + grow)),
+        ),
+        description=description, figure=figure, show="b", cmap=WHIPRAY_CMAP,
+    )
+
+
 @_register("whipray", "reticulate whipray: spots (r=30) grown at r=8 into a reticulation", "leopard paper Fig. 9")
 def _whipray(quick):
     start, grow = ((50, 50), 50) if quick else ((100, 100), 100)
-    dt = 0.004
-    period = 100  # 1 / (2.5 x 0.004)
-    return Experiment(
-        name="whipray", initial=Initial("paper", start),
-        phases=(
-            Phase(Turing(30.0, 3.0, lower=(0.0, 2.0)), steps=2000 if quick else 4000, dt=dt, frames=2, name="spots"),
-            Phase(Turing(8.0, 3.0, lower=(0.0, 2.0)), steps=grow * period, dt=dt, growth=Growth(2.5), frames=4,
-                  name="growth", capacity=(start[0] + grow, start[1] + grow)),
-        ),
-        description="static r=30 s=3 Lb=2 (4,000 steps), then r=8 growing at 2.5/unit time to 200x200 (10,000 steps)",
-        figure="leopard paper Fig. 9", show="b", cmap=WHIPRAY_CMAP,
-    )
+    return _whipray_kind(
+        "whipray", start, grow, 0.004, Turing(30.0, 3.0, lower=(0.0, 2.0)), Turing(8.0, 3.0, lower=(0.0, 2.0)),
+        2000 if quick else 4000,
+        "static r=30 s=3 Lb=2 (4,000 steps), then r=8 growing at 2.5/unit time to 200x200 (10,000 steps)",
+        "leopard paper Fig. 9")
 
 
 @_register("honeycomb-whipray", "honeycomb whipray: spots (r=30, s=6) grown into polygons", "leopard paper Fig. 10")
 def _honeycomb(quick):
     start, grow = ((50, 50), 10) if quick else ((100, 100), 20)
-    dt = 0.002
-    period = 200  # 1 / (2.5 x 0.002)
-    return Experiment(
-        name="honeycomb-whipray", initial=Initial("paper", start),
-        phases=(
-            Phase(Turing(30.0, 6.0, lower=(0.0, 3.0)), steps=8000 if quick else 20000, dt=dt, frames=2, name="spots"),
-            Phase(Turing(8.0, 3.0, lower=(0.0, 3.0)), steps=grow * period, dt=dt, growth=Growth(2.5), frames=4,
-                  name="growth", capacity=(start[0] + grow, start[1] + grow)),
-        ),
-        description="static r=30 s=6 Lb=3 (20,000 steps), then r=8 s=3 growing at 2.5/unit time to 120x120",
-        figure="leopard paper Fig. 10", show="b", cmap=WHIPRAY_CMAP,
-    )
+    return _whipray_kind(
+        "honeycomb-whipray", start, grow, 0.002, Turing(30.0, 6.0, lower=(0.0, 3.0)),
+        Turing(8.0, 3.0, lower=(0.0, 3.0)), 8000 if quick else 20000,
+        "static r=30 s=6 Lb=3 (20,000 steps), then r=8 s=3 growing at 2.5/unit time to 120x120",
+        "leopard paper Fig. 10")
 
 
 @_register("frog", "poison dart frog: stripes on a 50x10 strip grown to 125x85 (no-flux)", "leopard paper Fig. 11")

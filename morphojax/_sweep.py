@@ -38,7 +38,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import itertools
-import json
 import math
 import os
 import time
@@ -57,7 +56,7 @@ from ._checks import default_float
 from ._descriptors import SETTLE_TOL, describe, relative_change
 from ._growth import Growth, growth_from_dict, growth_to_dict, source_from_dict, source_to_dict
 from ._initial import initial_state
-from ._io import dumps, from_jsonable, model_from_dict, model_to_dict, to_jsonable
+from ._io import dumps, model_from_dict, model_to_dict, read_npz, to_jsonable
 from ._lattice import max_stable_dt, normalise_boundary, normalise_stencil
 from ._models import AbstractModel
 from ._simulate import run_status
@@ -527,21 +526,15 @@ def _captioned(img, text):
 
 def load_sweep(path) -> SweepResult:
     """Read the `.npz` written by `SweepResult.save` / `save_npz` back into a SweepResult."""
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"no such sweep file: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = from_jsonable(json.loads(str(data["metadata"])))
-            if meta.get("kind") != "morphojax.sweep":
-                raise ValueError("not a sweep file")
-            species = tuple(meta["species"])
-            stacked = np.stack([data[f"species_{n}"] for n in species], axis=-3)
-            names = tuple(meta["names"])
-            values = {n: np.asarray(data[f"value_{n}"], float).reshape(-1) for n in names}
-            extra = {k: np.asarray(data[k]) for k in ("size", "blowup_step", "overflow", "change")}
-    except (KeyError, OSError, ValueError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path} is not a morphojax sweep file ({err})") from err
+    def parse(meta, data):
+        if meta.get("kind") != "morphojax.sweep":
+            raise ValueError("not a sweep file")
+        species, names = tuple(meta["species"]), tuple(meta["names"])
+        return (species, names, np.stack([data[f"species_{n}"] for n in species], axis=-3),
+                {n: np.asarray(data[f"value_{n}"], float).reshape(-1) for n in names},
+                {k: np.asarray(data[k]) for k in ("size", "blowup_step", "overflow", "change")})
+
+    meta, (species, names, stacked, values, extra) = read_npz(path, "sweep", parse)
     n = len(next(iter(values.values())))
     axes = None if meta["axes"] is None else tuple(np.asarray(meta["axes"][k], float) for k in names)
     config = meta["config"]
