@@ -64,6 +64,7 @@ class FitResult:
     target: dict
 
     def to_json(self) -> dict:
+        """Everything in the result as a JSON-ready dict (top-level 'params')."""
         from morphojax._io import model_to_dict, to_jsonable
 
         model = model_to_dict(self.model) if isinstance(self.model, AbstractModel) else self.model.to_dict()
@@ -75,6 +76,7 @@ class FitResult:
         })
 
     def save_json(self, path) -> Path:
+        """Write `to_json()` to `path`; returns the path."""
         from morphojax._io import dumps
 
         path = Path(path)
@@ -83,6 +85,7 @@ class FitResult:
         return path
 
     def preview(self, path=None, scale: int | None = None):
+        """Side-by-side picture target | fitted simulation | loss curve (PIL image); saved when `path` is given."""
         from ._report import preview
 
         img = preview(self, scale=scale)

@@ -91,6 +91,7 @@ class Simulator(eqx.Module):
 
     # ---- parameters -------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
+        """Names that can be fitted or fixed (for experiments: the union over phases, and growth_rate)."""
         if isinstance(self.template, AbstractModel):
             return list(self.template.parameters())
         names = []
@@ -102,6 +103,7 @@ class Simulator(eqx.Module):
         return names + (["growth_rate"] if any(ph.growth is not None for ph in self.template.phases) else [])
 
     def check_names(self, names) -> None:
+        """Raise a ValueError for a name the template does not have (or an unknown PHASE: prefix)."""
         known = self.parameter_names()
         phases = {ph.name for ph in self.template.phases} if isinstance(self.template, Experiment) else set()
         for n in names:
@@ -131,6 +133,7 @@ class Simulator(eqx.Module):
 
     # ---- forward ----------------------------------------------------------------------
     def time_step(self, model):
+        """dt for `model`: min(safety x the explicit-Euler limit of its largest diffusion, dt_cap), or the fixed dt."""
         if self.dt is not None:
             return jnp.asarray(self.dt)
         rho = _SPECTRAL_RADIUS[normalise_stencil(self.stencil)]
@@ -202,6 +205,7 @@ class Simulator(eqx.Module):
                     f"{cap[0]}x{cap[1]}: lower the growth_rate bounds or give the experiment more capacity")
 
     def describe(self) -> dict:
+        """JSON-ready description of the simulator (template, lattice, steps, window, time step)."""
         from morphojax._io import model_to_dict, to_jsonable
 
         tmpl = model_to_dict(self.template) if isinstance(self.template, AbstractModel) else self.template.to_dict()

@@ -127,10 +127,12 @@ class ParamSpace:
         return self.from_unit(jax.nn.sigmoid(z))
 
     def to_free(self, values):
+        """Unconstrained coordinates (logit of the position within the bounds) of natural parameter values."""
         u = self.to_unit(values)
         return np.log(u) - np.log1p(-u)
 
     def as_dict(self, values) -> dict:
+        """{name: value} for a vector of natural parameter values, in the order of `names`."""
         return {n: values[..., i] for i, n in enumerate(self.names)}
 
     def design(self, n: int, method: str = "lhs", seed: int = 0) -> np.ndarray:

@@ -53,9 +53,11 @@ class StatsConfig:
     weights: tuple = ()
 
     def scale(self, name: str) -> float:
+        """The noise scale of one statistics group (its weight in the loss is 1 / scale)."""
         return dict(self.noise).get(name, 1.0) / dict(self.weights).get(name, 1.0)
 
     def groups(self) -> tuple:
+        """Names of the statistics groups in use, in the order of the statistics vector."""
         names = ["spectrum", "wavelength", "quantiles", "dark", "autocorr", "edges", "moments"]
         if self.orientation:
             names.append("orientation")

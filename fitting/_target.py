@@ -44,6 +44,7 @@ class Target:
         return self.field.shape
 
     def describe(self) -> dict:
+        """JSON-ready description of how the target was made (file, crop, channel, inversion, cell pixels)."""
         return {"source": self.source, "crop": list(self.crop) if self.crop else None, "channel": self.channel,
                 "invert": self.invert, "quantiles": list(self.quantiles), "cell_pixels": self.cell_pixels,
                 "lattice": list(self.field.shape), "pixels": list(self.pixels.shape)}

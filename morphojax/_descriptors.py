@@ -132,6 +132,7 @@ class Descriptors:
     settled: bool | None = None  # change < settle_tol (None when not measured)
 
     def as_dict(self):
+        """The descriptors as a plain dict (JSON-ready), one key per field."""
         return dataclasses.asdict(self)
 
 

@@ -47,6 +47,7 @@ class Initial:
     names: tuple | None = None
 
     def build(self, key) -> State:
+        """The initial State for a `jax.random` key (same key, same state)."""
         shape, cap = tuple(self.shape), (tuple(self.capacity) if self.capacity else None)
         if self.kind == "paper":
             return _initial.paper_state(key, shape, capacity=cap)
@@ -64,6 +65,7 @@ class Initial:
         raise ValueError(f"unknown initial kind {self.kind!r}; allowed: paper, thesis, constant, uniform, gray-scott")
 
     def to_dict(self):
+        """Plain-data (JSON-ready) form of the initial condition."""
         return to_jsonable(dataclasses.asdict(self))
 
     @classmethod
@@ -116,6 +118,7 @@ class Phase:
         return state
 
     def to_dict(self):
+        """Plain-data (JSON-ready) form of the phase."""
         from ._growth import growth_to_dict, source_to_dict
 
         bounds = self.bounds if isinstance(self.bounds, str) else {"barrier": self.bounds.k}
@@ -169,6 +172,7 @@ class Experiment:
         return sum(p.steps for p in self.phases)
 
     def to_dict(self):
+        """Plain-data (JSON-ready) form of the experiment: every phase, model, growth and source."""
         cmap = self.cmap if isinstance(self.cmap, str) else [list(s) for s in self.cmap.stops]
         return {"name": self.name, "description": self.description, "figure": self.figure, "show": self.show,
                 "cmap": to_jsonable(cmap), "initial": self.initial.to_dict(),
@@ -209,11 +213,13 @@ class Result:
     metadata: dict
 
     def image(self, scale: int = 1):
+        """The final picture as a PIL image, rendered as the experiment shows it; `scale` pixels per lattice cell."""
         from ._render import render_experiment
 
         return render_experiment(self.state, self.experiment, scale=scale)
 
     def save(self, path) -> Path:
+        """Write the result `.npz` (final species cropped to the active lattice, state, metadata); returns the path."""
         return save_npz(path, self.state, self.metadata)
 
 

@@ -41,6 +41,7 @@ class Gradient:
         object.__setattr__(self, "stops", stops)
 
     def table(self) -> np.ndarray:
+        """The 256-entry RGB lookup table (uint8, shape (256, 3)) interpolated between the colour stops."""
         pos = np.array([p for p, _ in self.stops])
         cols = np.array([c for _, c in self.stops], float)
         x = np.linspace(0.0, 1.0, 256)

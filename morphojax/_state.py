@@ -143,6 +143,7 @@ class State(eqx.Module):
         return self.arrays()[self.index(species)]
 
     def index(self, species) -> int:
+        """Position of a species given by name or index (0 .. n_species - 1); a ValueError otherwise."""
         if isinstance(species, (int, np.integer)):
             if not 0 <= species < self.n_species:
                 raise ValueError(f"species index {species} out of range 0..{self.n_species - 1}")
@@ -182,6 +183,7 @@ class State(eqx.Module):
         return State(self.fields[..., jnp.asarray(idx), :, :], self.size, self.step, self.time, names, self.growable)
 
     def rename(self, names: Sequence[str]) -> "State":
+        """The same state with new species names (one per species)."""
         return State(self.fields, self.size, self.step, self.time, tuple(names), self.growable)
 
     def with_capacity(self, capacity) -> "State":

@@ -284,6 +284,7 @@ class Member:
     config: dict
 
     def kwargs(self) -> dict:
+        """Keyword arguments of `simulate` that reproduce this member alone (model, state, steps, dt, ...)."""
         c = self.config
         return dict(model=self.model, state=self.state, steps=c["steps"], dt=self.dt, boundary=c["boundary"],
                     stencil=c["stencil"], bounds=c["bounds"], growth=self.growth, sources=c["sources"], key=self.key)
