@@ -117,7 +117,8 @@ class Growth(eqx.Module):
     def maybe_expand(self, p, size, k, dt, key, overflow, repad):
         """Inside the step: expand when phase step `k` (1-based) opens a period.
 
-        `p` is the ghost-padded array; `repad` pads the expanded interior again.
+        `p` is the ghost-padded array; `repad(p, x, size)` writes the expanded interior `x`
+        back into it with the ghost cells of the new active `size`.
         """
         period = self.period(dt)
         due = (period > 0) & ((k - 1) % jnp.maximum(period, 1) == 0)
@@ -127,7 +128,7 @@ class Growth(eqx.Module):
         def grow(args):
             p, size = args
             x, size = self.expand(p[..., 1:-1, 1:-1], size, key)
-            return repad(x), size
+            return repad(p, x, size), size
 
         p, size = jax.lax.cond(do, grow, lambda a: a, (p, size))
         return p, size, overflow | (due & ~room)
