@@ -370,6 +370,7 @@ class Source(eqx.Module):
         check_range(self.amplitude, "Source.amplitude", low=0.0)
 
     def check(self, state):
+        """Raise a ValueError if the species or the mask does not fit `state` (before a run)."""
         idx = state.index(self.species)
         if self.mask is not None and self.mask.shape != tuple(state.capacity):
             raise ValueError(f"Source mask has shape {self.mask.shape}; it must match the capacity {state.capacity}")

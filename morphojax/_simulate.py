@@ -44,6 +44,7 @@ class Barrier:
     k: int = 2
 
     def terms(self, x, lower, upper):
+        """The barrier rates added to the reaction for concentrations `x` and limits `lower`, `upper`."""
         k = self.k
         lo_ok = jnp.isfinite(lower)
         hi_ok = jnp.isfinite(upper)
