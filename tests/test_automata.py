@@ -111,8 +111,9 @@ def test_exact_tie_survives_tracing():
     assert int(out[7, 7]) == 0
 
 
-def test_run_is_repeated_step_and_records():
-    ca = YoungCA([YOUNG], method="direct")
+@pytest.mark.parametrize("method", ["direct", "fft"])  # fft with K = 1 carries a float indicator
+def test_run_is_repeated_step_and_records(method):
+    ca = YoungCA([YOUNG], method=method)
     cells = random_cells(jax.random.key(3), (24, 24), 1, p=0.1)
     ref = np.asarray(cells)
     for _ in range(6):
@@ -126,6 +127,12 @@ def test_run_is_repeated_step_and_records():
     assert float(out.changes[-1]) == pytest.approx(float(changed_fraction(ca.run(cells, 5).cells, out.cells)))
     zero = ca.run(cells, 0)
     assert int(zero.steps) == 0 and not bool(zero.converged)
+    assert ca._binary_fft(ca._plan(cells.shape)) == (method == "fft")
+    early = ca.run(cells, 40, stop_at_convergence=True, threshold=0.02)
+    n = int(early.steps)
+    assert bool(early.converged) and 0 < n < 40
+    np.testing.assert_array_equal(np.asarray(early.cells), np.asarray(ca.run(cells, n).cells))
+    assert float(changed_fraction(ca.run(cells, n - 1).cells, early.cells)) < 0.02
 
 
 @pytest.fixture(scope="module")
