@@ -12,6 +12,7 @@ and `jax.grad`. Non-array configuration (steps, boundary, stencil, ...) is stati
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any, Callable, NamedTuple
 
@@ -193,6 +194,17 @@ def _chunk(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
     return c1._replace(bad=jnp.where(needed, where, c1.bad))
 
 
+def _chunk_lean(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
+    """`n` steps, then a finiteness check that only marks the chunk: `bad` becomes the
+    chunk's last step (an upper bound). Keeps no copy of the starting state, so a growing
+    run's segments update their buffer in place; `_drive` re-runs a failed piece with
+    `_chunk` to pin down the exact step."""
+    run = (lambda c: _scan(step, c, n))
+    c1 = (jax.checkpoint(run) if checkpoint else run)(c)
+    marked = (c1.bad < 0) & ~jnp.all(jnp.isfinite(c1.p))
+    return c1._replace(bad=jnp.where(marked, c1.step, c1.bad))
+
+
 def _crop_state(c: _Carry, names, t0, step0, dt, growable, dynamic: bool) -> State:
     fields = c.p[..., 1:-1, 1:-1]
     if dynamic:  # drop the ghost cells written after the active region
@@ -263,14 +275,10 @@ def _integrate_plan(model, c, dt, key, origin, growth, sources, cfg, checkpoint,
     blocks, groups = plan
     steps_b = {}
 
-    def expand(sub):
-        x = sub.p[..., 1:-1, 1:-1]
-        room = (sub.size[0] < c.p.shape[-2] - 2) & (sub.size[1] < c.p.shape[-1] - 2)
+    def expand(sub):  # the plan knows the sizes: an expansion that would not fit is not planned
         k = jax.random.fold_in(jax.random.fold_in(key, sub.step - 1), 0)  # the key of the step it follows
-        x, size = growth.expand(x, sub.size, k)
-        x = jnp.where(room, x, sub.p[..., 1:-1, 1:-1])
-        size = jnp.where(room, size, sub.size)
-        return sub._replace(p=repad(sub.p, x, size, cfg.boundary), size=size, overflow=sub.overflow | ~room)
+        x, size = growth.expand(sub.p[..., 1:-1, 1:-1], sub.size, k)
+        return sub._replace(p=repad(sub.p, x, size, cfg.boundary), size=size)
 
     for b, n, grow, repeat in groups:
         if b not in steps_b:
@@ -278,7 +286,9 @@ def _integrate_plan(model, c, dt, key, origin, growth, sources, cfg, checkpoint,
         r, q = blocks[b]
 
         def body(sub, _, b=b, n=n, grow=grow):
-            sub = _chunk(steps_b[b], sub, n, checkpoint)
+            sub = _chunk_lean(steps_b[b], sub, n, checkpoint)
+            if grow == "overflow":  # due, but the capacity is full: recorded, as `maybe_expand` does
+                return sub._replace(overflow=jnp.asarray(True)), None
             return (expand(sub) if grow else sub), None
 
         sub = jax.lax.scan(body, c._replace(p=c.p[..., : r + 2, : q + 2]), None, length=repeat)[0]
@@ -433,7 +443,8 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
     run can be laid out in advance: each block of the size ladder (see `_block_schedule`)
     runs a scan over identical segments, and the per-step growth test disappears from the
     stepping loop. Returns (blocks, groups) with groups of (block, steps, expand, repeat),
-    or (None, None) when the sizes are not concrete.
+    expand being True, False or "overflow" (due but the capacity is full), or (None, None)
+    when the sizes are not concrete.
     """
     if growth is None or not is_concrete(state.size, state.step, origin, growth.rate, dt) or not steps:
         return None, None
@@ -453,14 +464,16 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
             n -= check
         segments.append((n, expand))
         t += n
-    sizes, grown = [], h
+    sizes, grown, kinds = [], (h, w), []
     for n, expand in segments:
-        grown = min(grown + int(expand), cap_r)
-        sizes.append(grown)
+        fits = grown[0] < cap_r and grown[1] < cap_c
+        kinds.append(("overflow" if not fits else True) if expand else False)
+        grown = (grown[0] + 1, grown[1] + 1) if expand and fits else grown
+        sizes.append(grown[0])
     ladder = _ladder(sizes[0], sizes[-1], cap_r, ratio, multiple)
     blocks = tuple((r, min(r - h + w, cap_c)) for r in ladder)
     groups = []
-    for (n, expand), need in zip(segments, sizes):
+    for (n, _), expand, need in zip(segments, kinds, sizes):
         b = next(i for i, r in enumerate(ladder) if r >= need)
         if groups and groups[-1][:3] == (b, n, expand):
             groups[-1] = (b, n, expand, groups[-1][3] + 1)
@@ -517,12 +530,17 @@ def _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoin
             if cfg.dynamic and plan is None:
                 per = max(1, min(save_every or chunk, int(n))) if n else 1
                 blocks, schedule = _block_schedule(current, growth, int(n), dt, origin, per)
-            final, bad_i, over_i, frames = _integrate(
-                model, current.fields, current.size, current.step, current.time, dt, key, origin, growth, sources,
-                names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
-                checkpoint=ckpt, save_every=save_every, save_fn=save_fn, blocks=blocks, schedule=schedule,
-                plan=plan,
-            )
+            run = functools.partial(
+                _integrate, model, current.fields, current.size, current.step, current.time, dt, key, origin, growth,
+                sources, names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
+                checkpoint=ckpt, save_every=save_every, save_fn=save_fn)
+            final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, plan=plan)
+            if plan is not None and is_concrete(bad_i) and int(bad_i) >= 0:
+                # a planned run only marks the segment that blew up: the same piece again
+                # (same key, same result) with a check after every step pins down the step
+                per = max(1, min(chunk, int(n)))
+                blocks, schedule = _block_schedule(current, growth, int(n), dt, origin, per)
+                final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, plan=None)
             bad = jnp.where(bad >= 0, bad, bad_i)
             overflow = overflow | over_i
             if frames is not None:

@@ -118,6 +118,26 @@ def test_blowup_reports_the_first_bad_step():
         mj.simulate(model, state, steps=400, dt=dt, check_dt=False, progress=True)
 
 
+def test_blowup_in_a_growing_run_reports_the_first_bad_step():
+    """A planned growing run only marks the segment that blew up, then re-runs the piece
+    to find the step: the state one step earlier must be finite, the state at it not."""
+    start = mj.paper_state(jax.random.key(1), (10, 10))
+    state = mj.State.from_arrays(start.arrays(), capacity=(120, 120))
+    model, dt, key = mj.Turing(ratio=4.0, scale=3.0), 0.09, jax.random.key(2)
+    opts = dict(growth=mj.Growth(rate=1.0 / (4 * dt)), key=key, check_dt=False)  # an expansion every 4 steps
+    _, bad, overflow = mj.run_status(model, state, steps=400, dt=dt, **opts)
+    bad = int(bad)
+    assert bad > 8 and not bool(overflow)  # after several expansions
+    before = mj.simulate(model, state, steps=bad - 1, dt=dt, throw=False, **opts)
+    at = mj.simulate(model, state, steps=bad, dt=dt, throw=False, **opts)
+    assert np.isfinite(np.asarray(before.fields)).all() and not np.isfinite(np.asarray(at.fields)).all()
+    assert int(at.size[0]) == 10 + (bad + 3) // 4  # expansions at steps 1, 5, 9, ...
+    with pytest.raises(mj.SimulationError, match=f"at step {bad}\\b"):
+        mj.simulate(model, state, steps=400, dt=dt, **opts)
+    with pytest.raises(mj.SimulationError, match=f"at step {bad}\\b"):  # the per-step path agrees
+        mj.rollout(model, state, 400, dt, every=50, **opts)
+
+
 def test_blowup_under_jit_raises():
     state = mj.paper_state(jax.random.key(1), (10, 10))
     run = jax.jit(lambda r: mj.simulate(mj.Turing(r, 3.0), state, steps=300, dt=0.09, check_dt=False).fields)
