@@ -11,8 +11,10 @@ and `jax.grad`. Non-array configuration (steps, boundary, stencil, ...) is stati
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import functools
+import itertools
 import math
 from typing import Any, Callable, NamedTuple
 
@@ -408,6 +410,47 @@ def _ladder(first: int, last: int, cap: int, ratio: float, multiple: int) -> lis
         r = max(r + 1, int(r * ratio)) if math.isfinite(ratio) else last
 
 
+def _placed_ladder(rows: list[int], weights: list[int], cap: int, ratio: float, multiple: int,
+                   area: Callable[[int], int]) -> list[int]:
+    """As many block sizes as `_ladder` gives (the number of compiled step bodies), placed
+    to minimise the work: sum over chunks of weight x area(block) for the smallest block
+    that holds each chunk's `rows` (dynamic programming over the candidate sizes).
+
+    For the leopard's development phase (130 -> 370 rows, linear growth) six blocks then
+    compute 15% more cells than the active regions instead of 21% for the geometric ladder.
+    """
+    geometric = _ladder(min(rows), max(rows), cap, ratio, multiple)
+    k = len(geometric)
+    cands = sorted({min(-(-r // multiple) * multiple, cap) for r in range(min(rows), max(rows) + 1)})
+    if k <= 1 or len(cands) <= k:
+        return geometric if len(cands) > k else cands
+    load = [0] * len(cands)  # load[j]: total weight of the chunks needing at most cands[j] rows
+    for r, wt in zip(rows, weights):
+        load[bisect.bisect_left(cands, r)] += wt
+    load = list(itertools.accumulate(load))
+
+    def seg(i, j):  # chunks in (cands[i], cands[j]] computed on block cands[j]
+        return (load[j] - (load[i] if i >= 0 else 0)) * area(cands[j])
+
+    n = len(cands)
+    best = [[math.inf] * n for _ in range(k + 1)]
+    back = [[-1] * n for _ in range(k + 1)]
+    for j in range(n):
+        best[1][j] = seg(-1, j)
+    for m in range(2, k + 1):
+        for j in range(1, n):
+            for i in range(j):
+                v = best[m - 1][i] + seg(i, j)
+                if v < best[m][j]:
+                    best[m][j], back[m][j] = v, i
+    m = min(range(1, k + 1), key=lambda m: best[m][n - 1])
+    out, j = [], n - 1
+    while j >= 0 and m >= 1:
+        out.append(cands[j])
+        j, m = back[m][j], m - 1
+    return sorted(out)
+
+
 def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: float = 1.25, multiple: int = 8):
     """Blocks for a run on a dynamic active region, and which one each chunk uses.
 
@@ -430,8 +473,10 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
         need = [min(h + (growth.expansions(e, dt, done) if growth is not None else 0), cap_r) for e in ends]
     if not need:
         return None, None
-    ladder = _ladder(need[0], need[-1], cap_r, ratio, multiple)
-    blocks = tuple((r, min(r - h + w, cap_c)) for r in ladder)
+    cols = lambda r: min(r - h + w, cap_c)
+    steps_per = [min((j + 1) * per, steps) - j * per for j in range(len(need))]
+    ladder = _placed_ladder(need, steps_per, cap_r, ratio, multiple, lambda r: r * cols(r))
+    blocks = tuple((r, cols(r)) for r in ladder)
     schedule = tuple(next(i for i, b in enumerate(ladder) if b >= n) for n in need)
     return blocks, schedule
 
@@ -470,8 +515,9 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
         kinds.append(("overflow" if not fits else True) if expand else False)
         grown = (grown[0] + 1, grown[1] + 1) if expand and fits else grown
         sizes.append(grown[0])
-    ladder = _ladder(sizes[0], sizes[-1], cap_r, ratio, multiple)
-    blocks = tuple((r, min(r - h + w, cap_c)) for r in ladder)
+    cols = lambda r: min(r - h + w, cap_c)
+    ladder = _placed_ladder(sizes, [n for n, _ in segments], cap_r, ratio, multiple, lambda r: r * cols(r))
+    blocks = tuple((r, cols(r)) for r in ladder)
     groups = []
     for (n, _), expand, need in zip(segments, kinds, sizes):
         b = next(i for i, r in enumerate(ladder) if r >= need)

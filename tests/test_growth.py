@@ -215,3 +215,29 @@ def test_growth_compiles_once_per_phase():
     out = mj.simulate(mj.Turing(9.0, 2.0), state, steps=900, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(2))
     assert out.shape == (19, 19)
     assert _simulate._integrate._cached._cache_size() == before
+
+
+def test_block_ladder_placement_is_optimal():
+    """The blocks a growing run computes on: as many as the geometric ladder, placed to
+    minimise the computed cells; checked against every choice of that many sizes."""
+    import itertools
+
+    from morphojax._simulate import _ladder, _placed_ladder
+
+    rng = np.random.default_rng(0)
+    for trial in range(20):
+        first = int(rng.integers(20, 60))
+        rows = sorted(int(r) for r in rng.integers(first, first + 90, 30))
+        weights = [int(w) for w in rng.integers(1, 100, len(rows))]
+        cap, area = first + 100, (lambda r: r * (r + 3))
+        placed = _placed_ladder(rows, weights, cap, 1.25, 8, area)
+
+        def work(ladder):
+            return sum(wt * area(next(b for b in ladder if b >= r)) for r, wt in zip(rows, weights))
+
+        geometric = _ladder(min(rows), max(rows), cap, 1.25, 8)
+        cands = sorted({min(-(-r // 8) * 8, cap) for r in range(min(rows), max(rows) + 1)})
+        best = min(work(c) for k in range(1, len(geometric) + 1) for c in itertools.combinations(cands, k)
+                   if c[-1] >= max(rows))
+        assert len(placed) <= len(geometric) and placed[-1] >= max(rows)
+        assert work(placed) == best <= work(geometric)
