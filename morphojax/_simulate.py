@@ -456,8 +456,9 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
 
     A chunk of `per` steps computes on the top-left block of the lattice that holds the
     active region as it will be at the chunk's end (expansions are on a fixed schedule),
-    chosen from a ladder of sizes growing by about 12.5% (multiples of 8). A growing run
-    then costs what its current size costs, still in one compiled program. Returns
+    chosen from a ladder of block sizes (multiples of 8, as many as a ladder growing by
+    `ratio` has, placed by `_placed_ladder` to minimise the cells computed). A growing run
+    then costs about what its current size costs, still in one compiled program. Returns
     (blocks, schedule) or (None, None) when sizes are not known in advance (traced states
     or growth rates, e.g. inside vmap over growth rates): the whole capacity is used then.
     """
