@@ -505,11 +505,11 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
     while t < steps:
         nxt = t + 1 + ((period - (done + t) % period) % period) if period > 0 else steps + 1
         n, expand = (nxt - t, True) if nxt <= steps else (steps - t, False)
+        t += n
         while n > 4 * check:  # long stretches: check for blow-ups every `check` steps
             segments.append((check, False))
             n -= check
         segments.append((n, expand))
-        t += n
     sizes, grown, kinds = [], (h, w), []
     for n, expand in segments:
         fits = grown[0] < cap_r and grown[1] < cap_c

@@ -241,3 +241,16 @@ def test_block_ladder_placement_is_optimal():
                    if c[-1] >= max(rows))
         assert len(placed) <= len(geometric) and placed[-1] >= max(rows)
         assert work(placed) == best <= work(geometric)
+
+
+def test_slow_growth_runs_exactly_the_steps_asked():
+    """Expansions further apart than the blow-up check interval (512 steps here): the
+    planned run must still take exactly `steps` steps and match the per-step path."""
+    state = mj.State.from_arrays(mj.paper_state(jax.random.key(3), (12, 12)).arrays(), capacity=(20, 20))
+    model, dt, key = mj.Turing(4.0, 3.0), 0.01, jax.random.key(4)
+    growth = mj.Growth(rate=1.0 / (600 * dt))  # expansions at steps 1, 601, 1201
+    out = mj.simulate(model, state, 1400, dt, growth=growth, key=key)
+    assert int(out.step) == 1400 and out.size.tolist() == [15, 15]
+    assert float(out.time) == pytest.approx(1400 * dt)
+    per_step, _ = mj.rollout(model, state, 1400, dt, every=700, growth=growth, key=key)
+    np.testing.assert_array_equal(np.asarray(out.fields), np.asarray(per_step.fields))
