@@ -217,13 +217,15 @@ def _crop_state(c: _Carry, names, t0, step0, dt, growable, dynamic: bool) -> Sta
 @eqx.filter_jit
 def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sources, *, names, growable,
                steps: int, cfg: _Config, chunk: int, checkpoint: bool, save_every: int | None, save_fn,
-               blocks=None, schedule=None, plan=None):
+               blocks=None, schedule=None, plan=None, clock=None):
     """The compiled core. Returns (final State, bad step, overflow flag, saved frames or None).
 
     With `blocks`, chunk j computes on the top-left block `blocks[schedule[j]]` (see
     `_block_schedule`); the chunk index comes from the scan, so it stays a real branch
-    under vmap too.
+    under vmap too. `clock` = (time, step) of the run's start when this is one of its
+    pieces: times are then time + (step - that step) dt, as in one piece.
     """
+    time0, step_t = (time0, step0) if clock is None else clock
     p = pad(fields, cfg.boundary)
     if cfg.dynamic:  # ghost cells along the active region's edges
         p = repad(p, fields, size, cfg.boundary)
@@ -255,19 +257,19 @@ def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sourc
 
     if plan is not None:
         return _integrate_plan(model, c, dt, key, origin, growth, sources, cfg, checkpoint, plan, names, growable,
-                               time0, step0)
+                               time0, step_t)
     frames = None
     if n_full:
         def body(c, j):
             c = run_chunk(c, j, per)
-            y = None if save_every is None else save_fn(_crop_state(c, names, time0, step0, dt, growable, cfg.dynamic))
+            y = None if save_every is None else save_fn(_crop_state(c, names, time0, step_t, dt, growable, cfg.dynamic))
             return c, y
 
         index = jnp.asarray(schedule[:n_full] if schedule is not None else [0] * n_full, jnp.int32)
         c, frames = jax.lax.scan(body, c, index)
     if rem:
         c = run_chunk(c, jnp.asarray(schedule[-1] if schedule is not None else 0, jnp.int32), rem)
-    final = _crop_state(c, names, time0, step0, dt, growable, cfg.dynamic)
+    final = _crop_state(c, names, time0, step_t, dt, growable, cfg.dynamic)
     return final, c.bad, c.overflow, frames
 
 
@@ -451,7 +453,17 @@ def _placed_ladder(rows: list[int], weights: list[int], cap: int, ratio: float, 
     return sorted(out)
 
 
-def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: float = 1.25, multiple: int = 8):
+def _ladder_or_rung(rows, weights, cap, ratio, multiple, area, rungs):
+    """The block sizes for a run: placed by `_placed_ladder`, or, given the `rungs` of a
+    whole run split into progress pieces, the one rung that holds every size of this
+    piece (pieces on the same rung then share one compiled program)."""
+    if rungs is None:
+        return _placed_ladder(rows, weights, cap, ratio, multiple, area)
+    return [next(r for r in rungs if r >= max(rows))]
+
+
+def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: float = 1.25, multiple: int = 8,
+                    rungs=None):
     """Blocks for a run on a dynamic active region, and which one each chunk uses.
 
     A chunk of `per` steps computes on the top-left block of the lattice that holds the
@@ -476,13 +488,14 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
         return None, None
     cols = lambda r: min(r - h + w, cap_c)
     steps_per = [min((j + 1) * per, steps) - j * per for j in range(len(need))]
-    ladder = _placed_ladder(need, steps_per, cap_r, ratio, multiple, lambda r: r * cols(r))
+    ladder = _ladder_or_rung(need, steps_per, cap_r, ratio, multiple, lambda r: r * cols(r), rungs)
     blocks = tuple((r, cols(r)) for r in ladder)
     schedule = tuple(next(i for i, b in enumerate(ladder) if b >= n) for n in need)
     return blocks, schedule
 
 
-def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio: float = 1.25, multiple: int = 8):
+def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio: float = 1.25, multiple: int = 8,
+                 rungs=None):
     """A growing run as segments: `n` steps without growth, then one expansion.
 
     Expansions fall on a fixed schedule (phase steps 1, 1 + p, 1 + 2p, ...), so an eager
@@ -517,7 +530,7 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
         grown = (grown[0] + 1, grown[1] + 1) if expand and fits else grown
         sizes.append(grown[0])
     cols = lambda r: min(r - h + w, cap_c)
-    ladder = _placed_ladder(sizes, [n for n, _ in segments], cap_r, ratio, multiple, lambda r: r * cols(r))
+    ladder = _ladder_or_rung(sizes, [n for n, _ in segments], cap_r, ratio, multiple, lambda r: r * cols(r), rungs)
     blocks = tuple((r, cols(r)) for r in ladder)
     groups = []
     for (n, _), expand, need in zip(segments, kinds, sizes):
@@ -554,11 +567,20 @@ def _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoin
     ckpt = bool(checkpoint)
     origin = state.step if origin is None else jnp.asarray(origin, jnp.int32)
     key = None if key is None else key
-    pieces = [steps]
+    pieces, rungs = [steps], None
     if progress and steps and is_concrete(state.fields, model, dt):
         unit = save_every or chunk
+        planned = cfg.dynamic and save_every is None and growth is not None and is_concrete(growth.rate)
+        if planned and growth.period_steps(dt) > 0:
+            unit = growth.period_steps(dt)  # every piece then has the same segments
         per = max(unit, (steps // 50) // unit * unit) if steps >= 50 * unit else steps
         pieces = [per] * (steps // per) + ([steps % per] if steps % per else [])
+        if len(pieces) > 1 and cfg.dynamic and growth is not None:
+            # the block sizes of the whole run, one per piece: a growing run in pieces
+            # compiles once per block size, not once per piece
+            whole = (_growth_plan(state, growth, steps, dt, origin, chunk) if planned
+                     else _block_schedule(state, growth, steps, dt, origin, max(1, min(unit, steps))))
+            rungs = None if whole[0] is None else tuple(b[0] for b in whole[0])
     bar = None
     if len(pieces) > 1 or (progress and steps):
         from tqdm.auto import tqdm
@@ -572,15 +594,16 @@ def _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoin
         for n in pieces:
             blocks, schedule, plan = None, None, None
             if cfg.dynamic and save_every is None and growth is not None:
-                plan = _growth_plan(current, growth, int(n), dt, origin, chunk)
+                plan = _growth_plan(current, growth, int(n), dt, origin, chunk, rungs=rungs)
                 plan = plan if plan[0] is not None else None
             if cfg.dynamic and plan is None:
                 per = max(1, min(save_every or chunk, int(n))) if n else 1
-                blocks, schedule = _block_schedule(current, growth, int(n), dt, origin, per)
+                blocks, schedule = _block_schedule(current, growth, int(n), dt, origin, per, rungs=rungs)
             run = functools.partial(
                 _integrate, model, current.fields, current.size, current.step, current.time, dt, key, origin, growth,
                 sources, names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
-                checkpoint=ckpt, save_every=save_every, save_fn=save_fn)
+                checkpoint=ckpt, save_every=save_every, save_fn=save_fn,
+                clock=None if len(pieces) == 1 else (state.time, state.step))
             final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, plan=plan)
             if plan is not None and is_concrete(bad_i) and int(bad_i) >= 0:
                 # a planned run only marks the segment that blew up: the same piece again

@@ -254,3 +254,28 @@ def test_slow_growth_runs_exactly_the_steps_asked():
     assert float(out.time) == pytest.approx(1400 * dt)
     per_step, _ = mj.rollout(model, state, 1400, dt, every=700, growth=growth, key=key)
     np.testing.assert_array_equal(np.asarray(out.fields), np.asarray(per_step.fields))
+
+
+def test_progress_pieces_of_a_growing_run_share_compiled_programs(monkeypatch):
+    """With a progress bar a growing run goes in pieces: the result is the same, and the
+    pieces reuse a few compiled programs (one per block size) instead of one each."""
+    from morphojax import _simulate
+
+    state = mj.State.from_arrays(mj.paper_state(jax.random.key(5), (150, 150)).arrays(), capacity=(200, 200))
+    model, dt, key = mj.Turing(4.0, 3.0), 0.01, jax.random.key(6)
+    growth = mj.Growth(rate=1.0 / (8 * dt))  # 50 expansions in 400 steps
+    whole = mj.simulate(model, state, 400, dt, growth=growth, key=key)
+    seen = []
+    real = _simulate._integrate
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["steps"], kwargs["plan"]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(_simulate, "_integrate", spy)
+    pieces = mj.simulate(model, state, 400, dt, growth=growth, key=key, progress=True)
+    np.testing.assert_array_equal(np.asarray(pieces.fields), np.asarray(whole.fields))
+    assert int(pieces.step) == 400 and pieces.size.tolist() == whole.size.tolist() == [200, 200]
+    assert float(pieces.time) == float(whole.time)  # one clock, not one per piece
+    assert len(seen) >= 10  # in pieces
+    assert len(set(seen)) <= 4, len(set(seen))  # a handful of distinct programs (block sizes, first piece)
