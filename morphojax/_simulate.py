@@ -607,7 +607,8 @@ def _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoin
             final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, plan=plan)
             if plan is not None and is_concrete(bad_i) and int(bad_i) >= 0:
                 # a planned run only marks the segment that blew up: the same piece again
-                # (same key, same result) with a check after every step pins down the step
+                # (same key, same result) on the chunked path, which replays the bad chunk
+                # one step at a time, pins down the step
                 per = max(1, min(chunk, int(n)))
                 blocks, schedule = _block_schedule(current, growth, int(n), dt, origin, per)
                 final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, plan=None)
