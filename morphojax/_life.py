@@ -85,7 +85,7 @@ class LifeLike(AbstractAutomaton):
             total = jnp.roll(total, 1, axis) + total + jnp.roll(total, -1, axis)
         return total - x
 
-    def _stepper(self, plan, shape):
+    def _stepper(self, plan, shape, pre=None):
         n_max = 3 ** len(shape)
         born = jnp.asarray(np.isin(np.arange(n_max), self.birth))
         keep = jnp.asarray(np.isin(np.arange(n_max), self.survive))
