@@ -183,14 +183,15 @@ def _locate_blowup(step, start: _Carry, n: int, needed) -> Array:
     return jnp.where(found, start.step + k, start.step + n)
 
 
+def _steps(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
+    """`n` steps in a scan, rematerialised in the backward pass when `checkpoint`."""
+    run = functools.partial(_scan, step, n=n)
+    return (jax.checkpoint(run) if checkpoint else run)(c)
+
+
 def _chunk(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
     """`n` steps, then a finiteness check that pins down the first bad step if needed."""
-    def run(c):
-        return _scan(step, c, n)
-
-    if checkpoint:
-        run = jax.checkpoint(run)
-    c1 = run(c)
+    c1 = _steps(step, c, n, checkpoint)
     needed = (c1.bad < 0) & ~jnp.all(jnp.isfinite(c1.p))
     where = _locate_blowup(step, c, n, needed)
     return c1._replace(bad=jnp.where(needed, where, c1.bad))
@@ -201,8 +202,7 @@ def _chunk_lean(step, c: _Carry, n: int, checkpoint: bool) -> _Carry:
     chunk's last step (an upper bound). Keeps no copy of the starting state, so a growing
     run's segments update their buffer in place; `_drive` re-runs a failed piece with
     `_chunk` to pin down the exact step."""
-    run = (lambda c: _scan(step, c, n))
-    c1 = (jax.checkpoint(run) if checkpoint else run)(c)
+    c1 = _steps(step, c, n, checkpoint)
     marked = (c1.bad < 0) & ~jnp.all(jnp.isfinite(c1.p))
     return c1._replace(bad=jnp.where(marked, c1.step, c1.bad))
 
