@@ -662,10 +662,6 @@ class YoungCA(AbstractAutomaton):
             return jnp.stack(out)
         axes = tuple(range(1, cells.ndim + 1))
         ind = jnp.stack([(cells == j) for j in range(k)]).astype(spectra.dtype)
-        if plan.combined and k == 1:  # the benchmark case: skip the batch axis (~4% faster)
-            f = jnp.fft.rfftn(ind[0])
-            w = jnp.fft.irfftn(_times_real(f, spectra[0]), s=cells.shape)
-            return jnp.round(w).astype(jnp.int32)[None]
         f = jnp.fft.rfftn(ind, axes=axes)
         if plan.combined:
             w = jnp.fft.irfftn(_times_real(f, spectra), s=cells.shape, axes=axes)
