@@ -230,6 +230,9 @@ def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sourc
     if cfg.dynamic:  # ghost cells along the active region's edges
         p = repad(p, fields, size, cfg.boundary)
     c = _Carry(p, size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False))
+    if plan is not None:
+        return _integrate_plan(model, c, dt, key, origin, growth, sources, cfg, checkpoint, plan, names, growable,
+                               time0, step_t)
     per = save_every if save_every is not None else chunk
     per = max(1, min(per, steps)) if steps else 1
     n_full, rem = divmod(steps, per)
@@ -255,9 +258,6 @@ def _integrate(model, fields, size, step0, time0, dt, key, origin, growth, sourc
                 return branch(0)(c)
             return jax.lax.switch(j, [branch(i) for i in range(len(blocks))], c)
 
-    if plan is not None:
-        return _integrate_plan(model, c, dt, key, origin, growth, sources, cfg, checkpoint, plan, names, growable,
-                               time0, step_t)
     frames = None
     if n_full:
         def body(c, j):
@@ -453,13 +453,19 @@ def _placed_ladder(rows: list[int], weights: list[int], cap: int, ratio: float, 
     return sorted(out)
 
 
-def _ladder_or_rung(rows, weights, cap, ratio, multiple, area, rungs):
-    """The block sizes for a run: placed by `_placed_ladder`, or, given the `rungs` of a
-    whole run split into progress pieces, the one rung that holds every size of this
-    piece (pieces on the same rung then share one compiled program)."""
+def _blocks(rows, weights, shape, capacity, ratio, multiple, rungs):
+    """(block rows, blocks as (rows, cols)) for a run whose chunks need `rows` rows with
+    `weights` steps each, starting from the active `shape`: placed by `_placed_ladder`, or,
+    given the `rungs` of a whole run split into progress pieces, the one rung that holds
+    every size of this piece (pieces on the same rung then share one compiled program).
+    Columns grow with the rows (one expansion adds one of each)."""
+    (h, w), (cap_r, cap_c) = shape, capacity
+    cols = lambda r: min(r - h + w, cap_c)
     if rungs is None:
-        return _placed_ladder(rows, weights, cap, ratio, multiple, area)
-    return [next(r for r in rungs if r >= max(rows))]
+        ladder = _placed_ladder(rows, weights, cap_r, ratio, multiple, lambda r: r * cols(r))
+    else:
+        ladder = [next(r for r in rungs if r >= max(rows))]
+    return ladder, tuple((r, cols(r)) for r in ladder)
 
 
 def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: float = 1.25, multiple: int = 8,
@@ -481,15 +487,13 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
     with jax.ensure_compile_time_eval():
         h, w = state.shape
         done = 0 if origin is None else int(state.step) - int(origin)
-        cap_r, cap_c = state.capacity
+        cap_r = state.capacity[0]
         ends = [min((j + 1) * per, steps) for j in range(-(-steps // per))] if steps else []
         need = [min(h + (growth.expansions(e, dt, done) if growth is not None else 0), cap_r) for e in ends]
     if not need:
         return None, None
-    cols = lambda r: min(r - h + w, cap_c)
     steps_per = [min((j + 1) * per, steps) - j * per for j in range(len(need))]
-    ladder = _ladder_or_rung(need, steps_per, cap_r, ratio, multiple, lambda r: r * cols(r), rungs)
-    blocks = tuple((r, cols(r)) for r in ladder)
+    ladder, blocks = _blocks(need, steps_per, (h, w), state.capacity, ratio, multiple, rungs)
     schedule = tuple(next(i for i, b in enumerate(ladder) if b >= n) for n in need)
     return blocks, schedule
 
@@ -529,9 +533,7 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
         kinds.append(("overflow" if not fits else True) if expand else False)
         grown = (grown[0] + 1, grown[1] + 1) if expand and fits else grown
         sizes.append(grown[0])
-    cols = lambda r: min(r - h + w, cap_c)
-    ladder = _ladder_or_rung(sizes, [n for n, _ in segments], cap_r, ratio, multiple, lambda r: r * cols(r), rungs)
-    blocks = tuple((r, cols(r)) for r in ladder)
+    ladder, blocks = _blocks(sizes, [n for n, _ in segments], (h, w), state.capacity, ratio, multiple, rungs)
     groups = []
     for (n, _), expand, need in zip(segments, kinds, sizes):
         b = next(i for i, r in enumerate(ladder) if r >= need)
@@ -566,7 +568,6 @@ def _drive(model, state, steps, dt, cfg, growth, sources, key, origin, checkpoin
     chunk = _default_chunk(steps, checkpoint)
     ckpt = bool(checkpoint)
     origin = state.step if origin is None else jnp.asarray(origin, jnp.int32)
-    key = None if key is None else key
     pieces, rungs = [steps], None
     if progress and steps and is_concrete(state.fields, model, dt):
         unit = save_every or chunk
