@@ -453,6 +453,11 @@ class YoungCA(AbstractAutomaton):
 
     def __init__(self, species, neighbourhood: str = "disc", include_self: bool = False, *,
                  denominator=None, method: str = "auto"):
+        dtype = jnp.result_type(float)
+        # Python or NumPy numbers are read on the host, so that the default denominator can
+        # be worked out even when the model is built inside jit / vmap
+        host = not any(isinstance(leaf, jax.Array) for leaf in jax.tree_util.tree_leaves(species))
+        xp = np if host else jnp
         if isinstance(species, (list, tuple)):
             if len(species) == 0:
                 raise ValueError("YoungCA.species needs at least one (r_act, r_inh, w_act, w_inh) tuple")
@@ -460,26 +465,25 @@ class YoungCA(AbstractAutomaton):
             for i, sp in enumerate(species):
                 if not isinstance(sp, (list, tuple, np.ndarray, jax.Array)) or len(sp) != 4:
                     raise ValueError(f"YoungCA.species[{i}] must be a tuple (r_act, r_inh, w_act, w_inh) (got {sp!r})")
-                rows.append(jnp.stack([jnp.asarray(v, dtype=jnp.result_type(float)) for v in sp]))
-            table = jnp.stack(rows)
+                rows.append(xp.stack([xp.asarray(v, dtype=dtype) for v in sp]))
+            table = xp.stack(rows)
         else:
-            table = jnp.asarray(species, dtype=jnp.result_type(float))
+            table = xp.asarray(species, dtype=dtype)
             if table.ndim != 2 or table.shape[1] != 4:
                 raise ValueError(f"YoungCA.species must have shape (K, 4) (got {table.shape})")
-        self.r_act, self.r_inh, self.w_act, self.w_inh = (table[:, i] for i in range(4))
+        self.r_act, self.r_inh, self.w_act, self.w_inh = (jnp.asarray(table[:, i]) for i in range(4))
         check_choice(neighbourhood, "YoungCA.neighbourhood", NEIGHBOURHOODS)
         check_choice(method, "YoungCA.method", METHODS)
         self.neighbourhood = neighbourhood
         self.include_self = bool(include_self)
         self.method = method
-        weights = (self.w_act, self.w_inh)
         if denominator is None:
-            if not is_concrete(weights):
+            if not (host or is_concrete(table)):
                 raise ValueError(
                     "YoungCA.denominator must be given when the weights are traced (inside jit/vmap): "
                     "weights are compared exactly as integers over it, e.g. denominator=100 for two decimals"
                 )
-            denominator = _common_denominator(np.concatenate([np.asarray(w) for w in weights]))
+            denominator = _common_denominator(np.asarray(table)[:, 2:])
             if denominator > _MAX_DENOMINATOR:
                 raise ValueError(
                     f"YoungCA weights must be decimals with a common denominator <= {_MAX_DENOMINATOR} "
@@ -511,13 +515,17 @@ class YoungCA(AbstractAutomaton):
         if is_concrete(self.w_act, self.w_inh, self.denominator):
             den = int(self.denominator)
             for name in ("w_act", "w_inh"):
-                scaled = np.asarray(getattr(self, name), np.float64) * den
+                value = np.asarray(getattr(self, name))
+                scaled = value.astype(np.float64) * den
                 if (np.abs(scaled) >= 2**24).any():
                     raise ValueError(
                         f"YoungCA.{name} x denominator must stay below 2^24 in magnitude (exact in float32); "
-                        f"got {np.asarray(getattr(self, name))} x {den}"
+                        f"got {value} x {den}"
                     )
-                if (np.abs(scaled - np.round(scaled)) > 1e-5 * np.maximum(1.0, np.abs(scaled))).any():
+                # a multiple of 1/den stored in the weights' precision is within a few of its
+                # ulps of one (a looser test would round a weight such as 1000.004 to 1000)
+                tol = 4.0 * float(np.finfo(value.dtype).eps) * np.maximum(1.0, np.abs(scaled))
+                if (np.abs(scaled - np.round(scaled)) > tol).any():
                     raise ValueError(
                         f"YoungCA.{name} must be multiples of 1/denominator = 1/{den} (got {np.asarray(getattr(self, name))})"
                     )
@@ -562,6 +570,12 @@ class YoungCA(AbstractAutomaton):
         b = jnp.round(self.w_inh * den).astype(jnp.int32)
         return a, b
 
+    def _host_integer_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """`_integer_weights` of a concrete model in NumPy (also while a jit traces a
+        function that closes over the model, where jnp operations would give tracers)."""
+        den = int(self.denominator)
+        return tuple(np.round(np.asarray(w, np.float64) * den).astype(np.int64) for w in (self.w_act, self.w_inh))
+
     # ---- planning -----------------------------------------------------------------------
     def _key(self, shape):
         """What a plan and the kernel spectra depend on (None for traced parameters)."""
@@ -580,9 +594,15 @@ class YoungCA(AbstractAutomaton):
         if key is None:  # traced, direct, or large (computing them in each run then costs little)
             return None
         if key not in _SPECTRA:
+            # computed now even while a jit traces a function that closes over the model:
+            # the cache must only ever hold concrete arrays
+            with jax.ensure_compile_time_eval():
+                spectra = _jit_spectra(self, plan=plan, shape=tuple(shape))
+            if not is_concrete(spectra):  # pragma: no cover - defensive
+                return None
             if len(_SPECTRA) >= 32:
                 _SPECTRA.clear()
-            _SPECTRA[key] = _jit_spectra(self, plan=plan, shape=tuple(shape))
+            _SPECTRA[key] = spectra
         return _SPECTRA[key]
 
     def _make_plan(self, shape) -> _YoungPlan:
@@ -604,7 +624,7 @@ class YoungCA(AbstractAutomaton):
         count_dtype = "int16" if ball < 2**15 else "int32"
         combined = False
         if is_concrete(self.w_act, self.w_inh, self.denominator):
-            a, b = (np.abs(np.asarray(x, np.int64)) for x in self._integer_weights())
+            a, b = (np.abs(x) for x in self._host_integer_weights())
             bound = int(np.max(a * counts[:, 0] + b * counts[:, 1]))
             if bound > _INT32_MAX:
                 raise ValueError(
@@ -734,7 +754,9 @@ class YoungCA(AbstractAutomaton):
         over (W_0, ..., W_{K-1}, 0) becomes softmax(. / temperature) and the keep-on-tie
         rule a gate g = 1 - exp(-(max_j W_j / temperature)^2) between that softmax and the
         current probabilities. As temperature -> 0 this is the hard step on one-hot input
-        (except on ties between species, split evenly here). `temperature` is in units of
+        (except on ties between species, split evenly here); a tie at W = 0 keeps the state
+        at any temperature, because neighbour counts within 1e-3 of an integer are taken
+        as that integer (in value; their gradients are kept). `temperature` is in units of
         the weights; `edge` (lattice cells) smooths the disc boundaries with a sigmoid so
         that the radii get gradients too (None: hard discs).
         """
@@ -750,8 +772,16 @@ class YoungCA(AbstractAutomaton):
         f = jnp.fft.rfftn(probs[:k], axes=axes)
         spec = jnp.fft.rfftn(jnp.concatenate([act, ring]), axes=axes).real
         counts = jnp.fft.irfftn(_times_real(jnp.concatenate([f, f]), spec), s=shape, axes=axes)
+        # On one-hot input the counts are integers, and W x denominator is then a sum of
+        # integer products (w x denominator is an integer in float), so a tie is an exact
+        # zero: the counts' values (not their gradients) are snapped to the nearest integer
+        # when within 1e-3 of it, so that the transforms' float error (~1e-6) cannot open
+        # the keep-on-tie gate as the temperature goes to 0.
+        near = jnp.round(counts) - counts
+        counts = counts + jax.lax.stop_gradient(jnp.where(jnp.abs(near) < 1e-3, near, 0.0))
+        den = self.denominator.astype(counts.dtype)
         bc = (slice(None),) + (None,) * len(shape)
-        w = self.w_act[bc] * counts[:k] + self.w_inh[bc] * counts[k:]
+        w = ((self.w_act * den)[bc] * counts[:k] + (self.w_inh * den)[bc] * counts[k:]) / den
         scores = jnp.concatenate([w, jnp.zeros((1,) + shape, w.dtype)])
         q = jax.nn.softmax(scores / temperature, axis=0)
         gate = 1.0 - jnp.exp(-jnp.square(jnp.max(w, axis=0) / temperature))

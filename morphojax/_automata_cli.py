@@ -26,6 +26,7 @@ from PIL import Image, ImageDraw, ImageFont
 from ._automata import (YOUNG_P, YoungCA, order_parameter, random_cells, volume_fractions,
                         weighted_volume_difference)
 from ._automata_io import cells_image, slice_montage, write_species_meshes
+from ._checks import check_range
 from ._life import LifeLike, glider
 from ._render import montage
 
@@ -346,7 +347,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--stop-at-convergence", action="store_true", help="stop once < --threshold of the cells change")
     p.add_argument("--threshold", type=float, default=0.01, help="convergence threshold (fraction, default 0.01)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--frames", action="store_true", help="also write intermediate snapshots")
+    p.add_argument("--frames", action="store_true", help="also write intermediate snapshots (Young automata)")
     p.add_argument("--out", type=Path, default=Path("ca.png"))
     p.set_defaults(func=run_ca_command)
     return p
@@ -360,6 +361,12 @@ def run_ca_command(args) -> int:
 
 
 def _run_ca(args) -> int:
+    if args.dim not in (2, 3):  # the library takes any dimension; pictures and meshes need 2 or 3
+        raise ValueError(f"--dim must be 2 or 3 (got {args.dim})")
+    check_range(args.size, "--size (cells per side)", low=1)
+    check_range(args.steps, "--steps", low=0)
+    if args.p is not None:
+        check_range(args.p, "--p (probability)", low=0.0, high=1.0)
     out = args.out if args.out.suffix.lower() == ".png" else args.out.with_suffix(".png")
     out.parent.mkdir(parents=True, exist_ok=True)
     shape = (int(args.size),) * int(args.dim)

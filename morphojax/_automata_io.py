@@ -68,7 +68,10 @@ def species_mesh(cells, j: int, *, step_size: int = 1) -> tuple[np.ndarray, np.n
     ind = np.pad((cells == j).astype(np.float32), 1)
     if not ind.any():
         return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
-    verts, faces, _, _ = marching_cubes(ind, level=0.5, step_size=step_size, allow_degenerate=False)
+    # "ascent": the indicator rises into the species, so the triangles wind counter-clockwise
+    # seen from outside (outward normals, as PLY / OBJ viewers expect)
+    verts, faces, _, _ = marching_cubes(ind, level=0.5, step_size=step_size, allow_degenerate=False,
+                                        gradient_direction="ascent")
     return (verts - 1.0).astype(np.float32), faces.astype(np.int32)
 
 

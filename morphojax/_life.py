@@ -74,6 +74,13 @@ class LifeLike(AbstractAutomaton):
     def _plan(self, shape):
         if min(shape) < 3:
             raise ValueError(f"LifeLike cells: every side of the periodic lattice must be at least 3 (got shape {tuple(shape)})")
+        most = 3 ** len(shape) - 1
+        named = self.birth + self.survive
+        if named and max(named) > most:
+            raise ValueError(
+                f"LifeLike.rule {self.rule}: neighbour counts must lie in [0, {most}] on a {len(shape)}D lattice "
+                f"(got {max(named)})"
+            )
         return None
 
     def neighbours(self, cells) -> Array:

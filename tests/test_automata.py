@@ -208,7 +208,7 @@ def test_soft_step_tends_to_hard_step(k):
     probs = one_hot_cells(cells, k)
     soft_step = eqx.filter_jit(lambda m, p, t: m.soft_step(p, t))
     errors = []
-    for t in (1.0, 0.1, 1e-3):
+    for t in (1.0, 0.1, 1e-3, 1e-9):  # 1e-9: far below the transforms' float error
         soft = soft_step(ca, probs, jnp.float32(t))
         np.testing.assert_allclose(np.asarray(soft.sum(0)), 1.0, atol=1e-5)
         errors.append(int((np.asarray(hard_cells(soft)) != hard)[~species_tie].sum()))
@@ -220,8 +220,9 @@ def test_soft_step_tends_to_hard_step(k):
 def test_soft_step_keeps_state_on_exact_tie():
     ca = YoungCA([(1.5, 3.0, 1.0, -0.2)])
     for target in (0, 1):
-        p = ca.soft_step(one_hot_cells(_tie_lattice(target), 1), 1e-3)
-        assert float(p[target, 7, 7]) > 0.999
+        for temperature in (1e-3, 1e-9):
+            p = ca.soft_step(one_hot_cells(_tie_lattice(target), 1), temperature)
+            assert float(p[target, 7, 7]) > 0.999
 
 
 def test_soft_run_gradients():
@@ -271,6 +272,10 @@ def test_rule_notation():
     assert LifeLike("highlife").rule == "B36/S23"
     with pytest.raises(ValueError, match=r"LifeLike\.rule.*B/S notation"):
         LifeLike("conway's")
+    with pytest.raises(ValueError, match=r"LifeLike\.rule B9/S: neighbour counts must lie in \[0, 8\] on a 2D"):
+        LifeLike("B9/S").step(np.ones((5, 5), np.int8))
+    with pytest.raises(ValueError, match=r"must lie in \[0, 2\] on a 1D lattice \(got 3\)"):
+        LifeLike("B3/S23").step(np.ones(7, np.int8))
 
 
 # ---- jit and vmap ------------------------------------------------------------------------
@@ -296,6 +301,22 @@ def test_vmap_over_keys_and_parameters():
         jax.vmap(lambda w: YoungCA([(2.3, 6.01, 1.0, w)]).step(cells))(jnp.asarray(ws))
 
 
+@pytest.mark.parametrize("method", ["direct", "fft"])
+def test_jit_closing_over_a_model(method):
+    """A model built outside (never called before) or inside a jitted function, from
+    Python numbers: the plan and the cached kernel spectra are worked out concretely."""
+    species = [(2.2, 5.5, 1.0, -0.3)] if method == "direct" else [(2.1, 5.4, 1.0, -0.3)]  # not cached yet
+    cells = _state((20, 20), 1, 12)
+    ref = cells
+    for _ in range(3):
+        ref = oracle.young_step(ref, species)
+    ca = YoungCA(species, method=method)
+    np.testing.assert_array_equal(np.asarray(jax.jit(lambda c: ca.run(c, 3).cells)(cells)), ref)
+    np.testing.assert_array_equal(np.asarray(ca.run(cells, 3).cells), ref)  # nothing traced left in a cache
+    inside = jax.jit(lambda c: YoungCA(species).run(c, 3).cells)  # default denominator inside jit (radii traced)
+    np.testing.assert_array_equal(np.asarray(inside(cells)), ref)
+
+
 def test_jit_with_traced_radii_and_no_retrace():
     cells = _state((18, 18), 1, 7)
     step = eqx.filter_jit(eqx.debug.assert_max_traces(lambda m, c: m.step(c), max_traces=1))
@@ -318,6 +339,7 @@ def test_jit_with_traced_radii_and_no_retrace():
         (lambda: YoungCA([]), r"YoungCA\.species needs at least one"),
         (lambda: YoungCA([(2.0, 6.0, 1.0, -0.1234567)]), r"YoungCA weights.*denominator"),
         (lambda: YoungCA([(2.0, 6.0, 1.0, -0.25)], denominator=3), r"YoungCA\.w_inh must be multiples of 1/denominator"),
+        (lambda: YoungCA([(1.0, 2.0, 1000.004, -1000.0)], denominator=1), r"YoungCA\.w_act must be multiples of 1/den"),
         (lambda: YoungCA([(2.0, 6.0, 1.0, -0.2)], method="gpu"), r"YoungCA\.method"),
         (lambda: YoungCA([(2.0, np.nan, 1.0, -0.2)]), r"YoungCA\.r_inh must be finite"),
     ],
@@ -369,6 +391,9 @@ def test_images_and_meshes(tmp_path):
     assert area == pytest.approx(4 * math.pi * 8.0**2, rel=0.2)  # voxel staircase adds ~10%
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     assert np.all(np.unique(edges, axis=0, return_counts=True)[1] == 2)  # closed surface
+    # outward normals: the signed volume of the counter-clockwise triangles is the ball's
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])).sum() / 6
+    assert volume == pytest.approx(4 / 3 * math.pi * 8.0**3, rel=0.1)
     v2, f2 = read_ply(write_ply(tmp_path / "ball.ply", verts, faces, colour=(10, 20, 30)))
     np.testing.assert_array_equal(v2, verts)
     np.testing.assert_array_equal(f2, faces)
@@ -413,3 +438,10 @@ def test_ca_command_3d(tmp_path, capsys):
     assert any(f.endswith(".ply") for f in summary["files"])
     with pytest.raises(SystemExit):
         parser.parse_args(["ca", "--species", "1,2,3"])
+    for bad, message in ((["--rule", "B3/S23", "--p", "1.5"], r"--p \(probability\) must lie in \[0, 1\]"),
+                         (["--dim", "4"], r"--dim must be 2 or 3"),
+                         (["--size", "0"], r"--size \(cells per side\) must lie in \[1, \+inf\)")):
+        args = parser.parse_args(["ca", *bad, "--out", str(tmp_path / "bad.png")])
+        with pytest.raises(SystemExit, match=message):  # before any run: nothing written
+            args.func(args)
+    assert not (tmp_path / "bad.png").exists()
