@@ -218,7 +218,7 @@ def _cmd_resume(args):
     if int(run.get("phase", 0)) >= len(exp.phases):
         print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
     out = _stem(args.out if args.out is not None else args.checkpoint.with_suffix(".png"), exp.name)
-    args.seed = int(run.get("seed", 0))
+    args.seed = int(run["seed"]) if run.get("seed") is not None else 0  # a key-started run resumes with its key
     result = _run_one(exp, args, out.with_suffix(".npz"), resume=(state, meta))
     _write_outputs(result, out, args)
     return 0

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import _initial
 from ._checks import is_concrete
-from ._io import from_jsonable, load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
+from ._io import from_jsonable, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._models import AbstractModel
 from ._simulate import Barrier, simulate
 from ._state import State
@@ -239,7 +239,8 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
         checkpoint_path / checkpoint_every: write an `.npz` checkpoint every N steps (and at
             phase ends) that `resume` accepts.
         resume: a checkpoint path (or (State, metadata) from `load_npz`) to continue from; the
-            result equals that of an uninterrupted run with the same seed.
+            result equals that of an uninterrupted run with the same seed (or key: a run
+            started with `key=` records it, and resumes with it unless given another).
         stop_after: stop after this many steps in total (for tests of resuming).
         grad_window: differentiate only through the last `grad_window` steps of the run; the
             state before them is treated as a constant (truncated backpropagation, see the
@@ -248,12 +249,14 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
     if resume is not None:
         state, meta = load_npz(resume) if not isinstance(resume, tuple) else resume
         run = meta.get("run", {})
-        seed = int(run.get("seed", seed))
+        seed = int(run["seed"]) if run.get("seed") is not None else seed
+        key = key_from_data(run.get("key")) if key is None else key
         start_phase, phase_step = int(run.get("phase", 0)), int(run.get("phase_step", 0))
         origin = run.get("phase_origin")
     else:
         start_phase, phase_step, origin = 0, 0, None
     root = jax.random.key(int(seed)) if key is None else key
+    record = {"seed": int(seed)} if key is None else {"seed": None, "key": key_to_data(key)}
     if resume is None:
         state = experiment.initial.build(jax.random.fold_in(root, 0))
     steps_before = sum(p.steps for p in experiment.phases[:start_phase])
@@ -287,17 +290,17 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
                 snapshots.append((f"{phase.name or f'phase {i + 1}'} step {cut}", state))
             at_end = cut == phase.steps
             if checkpoint_path is not None and (cut in saves or at_end):
-                _write(checkpoint_path, state, experiment, seed, i + 1 if at_end else i, 0 if at_end else cut,
+                _write(checkpoint_path, state, experiment, record, i + 1 if at_end else i, 0 if at_end else cut,
                        origin, timings)
             if stop_after is not None and done_total >= stop_after and not at_end:
                 timings.append({"phase": phase.name or str(i + 1), "steps": cut, "seconds": time.perf_counter() - t0})
-                return Result(state, experiment, snapshots, _meta(experiment, seed, i, cut, origin, timings))
+                return Result(state, experiment, snapshots, _meta(experiment, record, i, cut, origin, timings))
         timings.append({"phase": phase.name or str(i + 1), "steps": phase.steps, "seconds": time.perf_counter() - t0})
         steps_before += phase.steps
         phase_step = 0
         if stop_after is not None and done_total >= stop_after and i + 1 < len(experiment.phases):
-            return Result(state, experiment, snapshots, _meta(experiment, seed, i + 1, 0, origin, timings))
-    meta = _meta(experiment, seed, len(experiment.phases), 0, origin, timings)
+            return Result(state, experiment, snapshots, _meta(experiment, record, i + 1, 0, origin, timings))
+    meta = _meta(experiment, record, len(experiment.phases), 0, origin, timings)
     meta["run"]["seconds"] = time.perf_counter() - t_start
     return Result(state, experiment, snapshots, meta)
 
@@ -312,20 +315,21 @@ def _frame_steps(phase: Phase) -> list[int]:
     return list(range(every, phase.steps + 1, every))
 
 
-def _meta(experiment, seed, phase, phase_step, origin, timings):
+def _meta(experiment, record, phase, phase_step, origin, timings):
+    """`record`: {"seed": int} for a run from a seed, {"seed": None, "key": words} from a key."""
     # under jit/vmap/grad the parameters are tracers: there is nothing concrete to record
     concrete = is_concrete([p.model for p in experiment.phases], [p.growth for p in experiment.phases])
     return {
         "morphojax": __version__,
         "experiment": experiment.to_dict() if concrete else None,
-        "run": {"seed": int(seed), "phase": int(phase), "phase_step": int(phase_step),
+        "run": {**record, "phase": int(phase), "phase_step": int(phase_step),
                 "phase_origin": int(origin) if origin is not None and is_concrete(origin) else None,
                 "timings": timings},
     }
 
 
-def _write(path, state, experiment, seed, phase, phase_step, origin, timings):
-    save_npz(path, state, _meta(experiment, seed, phase, phase_step, origin, timings))
+def _write(path, state, experiment, record, phase, phase_step, origin, timings):
+    save_npz(path, state, _meta(experiment, record, phase, phase_step, origin, timings))
 
 
 def load_experiment(meta: dict) -> Experiment:

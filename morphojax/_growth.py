@@ -20,10 +20,10 @@ grows by image interpolation to (rows + 1, cols + 1) instead of cell division.
 
 from __future__ import annotations
 
-import math
 
 import equinox as eqx
 import jax
+import jax.scipy.special
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -47,7 +47,8 @@ class Growth(eqx.Module):
         rate: expansions per unit time (time = steps x dt); 0 disables growth.
         distribution: law of the dividing indices (see module docstring).
         row_weights / col_weights: optional profiles (1D arrays) over relative position
-            multiplying the law; resampled to the current size by nearest neighbour.
+            multiplying the law's mass of each index; resampled to the current size by
+            nearest neighbour (all-ones weights leave the law as it is).
         spread: sd of the clipped normal as a fraction of the current size.
         method: "division" (random matrix expansion) or an interpolation control:
             "nearest", "bilinear", "bicubic".
@@ -198,59 +199,48 @@ class Growth(eqx.Module):
         if self.distribution == "uniform":
             idx = jnp.floor(jax.random.uniform(key, (count,)) * nf)
         elif self.distribution == "triangular":
-            u = jax.random.uniform(key, (2, count))
-            idx = jnp.floor((u[0] + u[1]) * 0.5 * nf)
+            u = jax.random.uniform(key, (count, 2))  # (count, 2): the first draws do not depend on count
+            idx = jnp.floor((u[:, 0] + u[:, 1]) * 0.5 * nf)
         else:  # clipped normal
             z = jax.random.normal(key, (count,))
             idx = jnp.round((nf - 1) / 2 + z * self.spread * nf)
         return jnp.clip(idx, 0, nf - 1).astype(jnp.int32)
 
     def pmf_profile(self, weights):
-        """The law times a weight profile, as a function of relative position in [0, 1)."""
+        """The law's exact mass of each index times the weight profile: a function of
+        (index i, current size n), unnormalised; all-ones weights give the law itself."""
         dist, spread = self.distribution, self.spread
 
-        def profile(rel):  # rel = (i + 0.5) / n
-            if dist == "uniform":
-                base = jnp.ones_like(rel)
-            elif dist == "triangular":
-                base = 1.0 - jnp.abs(2.0 * rel - 1.0)
-            else:
-                base = jnp.exp(-0.5 * ((rel - 0.5) / spread) ** 2)
+        def profile(i, n):
+            i = jnp.asarray(i, jnp.float32)
+            nf = jnp.asarray(n, jnp.float32)
+            if dist == "triangular":  # floor(n (u1 + u2) / 2): the triangular cdf over each cell
+                cdf = lambda s: jnp.where(s < 0.5, 2.0 * s * s, 1.0 - 2.0 * (1.0 - s) ** 2)
+                base = cdf(jnp.clip((i + 1.0) / nf, 0.0, 1.0)) - cdf(jnp.clip(i / nf, 0.0, 1.0))
+            elif dist == "normal":  # rounded, clipped: the tails pile on the edge cells
+                mu, sd = (nf - 1.0) / 2.0, spread * nf
+                upper = jnp.where(i >= nf - 1.0, 1.0, jax.scipy.special.ndtr((i + 0.5 - mu) / sd))
+                lower = jnp.where(i <= 0.0, 0.0, jax.scipy.special.ndtr((i - 0.5 - mu) / sd))
+                base = upper - lower
+            else:  # uniform, shuffle
+                base = jnp.ones_like(i)
             k = weights.shape[0]
-            idx = jnp.clip(jnp.floor(rel * k).astype(jnp.int32), 0, k - 1)
+            idx = jnp.clip(jnp.floor((i + 0.5) / nf * k).astype(jnp.int32), 0, k - 1)
             return base * weights[idx]
 
         return profile
 
     def law(self, n: int, weights=None) -> np.ndarray:
-        """The exact probability of each index 0..n-1 (NumPy), for tests and figures."""
-        i = np.arange(n)
-        if self.distribution in ("uniform", "shuffle") and weights is None:
-            return np.full(n, 1.0 / n)
-        if weights is not None:
-            p = np.asarray(self.pmf_profile(jnp.asarray(weights))(jnp.asarray((i + 0.5) / n)), float)
-            return p / p.sum()
-        if self.distribution == "triangular":
-            # floor(n (u1 + u2) / 2): density of s = (u1 + u2) / 2 is triangular on [0, 1]
-            def cdf(s):
-                s = np.clip(s, 0, 1)
-                return np.where(s < 0.5, 2 * s * s, 1 - 2 * (1 - s) ** 2)
-            return cdf((i + 1) / n) - cdf(i / n)
-        from math import erf
-
-        sd = self.spread * n
-        mu = (n - 1) / 2
-        phi = np.vectorize(lambda t: 0.5 * (1 + erf(t / math.sqrt(2))))
-        upper = np.where(i == n - 1, 1.0, phi((i + 0.5 - mu) / sd))
-        lower = np.where(i == 0, 0.0, phi((i - 0.5 - mu) / sd))
-        return upper - lower
+        """The exact probability of each index 0..n-1, for tests and figures."""
+        p = np.asarray(self.pmf_profile(jnp.ones(1) if weights is None else jnp.asarray(weights))(np.arange(n), n),
+                       float)
+        return p / p.sum()
 
 
 def _draw_weighted(key, n, count: int, profile, cap: int):
     """`count` indices in [0, n) with probabilities proportional to `profile`, by inverting
     the cumulative distribution (one uniform number per index drawn)."""
-    rel = (jnp.arange(cap) + 0.5) / n
-    p = jnp.where(jnp.arange(cap) < n, profile(rel), 0.0)
+    p = jnp.where(jnp.arange(cap) < n, profile(jnp.arange(cap), n), 0.0)
     cdf = jnp.cumsum(p)
     u = jax.random.uniform(key, (count,), cdf.dtype) * cdf[-1]
     idx = jnp.searchsorted(cdf, u, side="right")
@@ -382,11 +372,14 @@ class Source(eqx.Module):
         dtype = like.dtype
         r = jnp.arange(rows)[:, None]
         c = jnp.arange(cols)[None, :]
-        if self.region == "mask":
-            return jax.random.uniform(key, (rows, cols), dtype) * self.amplitude * self.mask
-        if self.region == "all":
-            weight = (r < size[0]) & (c < size[1])
-            return jax.random.uniform(key, (rows, cols), dtype) * self.amplitude * weight
+        if self.region in ("mask", "all"):
+            # one key per row, so that a cell's number does not depend on the width of the
+            # block a run computes on (eager runs use blocks of the capacity, jit the whole)
+            keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(rows))
+            noise = jax.vmap(lambda k: jax.random.uniform(k, (cols,), dtype))(keys) * self.amplitude
+            if self.region == "mask":
+                return noise * self.mask[:rows, :cols]
+            return noise * ((r < size[0]) & (c < size[1]))
         # a single row or column: draw only the numbers it needs
         if self.region in ("center-row", "top-row", "bottom-row"):
             at = {"center-row": size[0] // 2, "top-row": 0, "bottom-row": size[0] - 1}[self.region]

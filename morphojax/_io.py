@@ -13,8 +13,10 @@ import json
 import math
 from pathlib import Path
 
+import jax
 import numpy as np
 
+from ._checks import is_concrete
 from ._models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
 from ._state import State
 
@@ -78,6 +80,22 @@ def model_from_dict(data: dict) -> AbstractModel:
     return MODEL_TYPES[kind](**params)
 
 
+def key_to_data(key):
+    """A `jax.random` key (typed or a raw uint32 array) as a JSON list of its words; None
+    for no key or a traced one. `key_from_data` rebuilds it."""
+    if key is None or not is_concrete(key):
+        return None
+    try:
+        return np.asarray(jax.random.key_data(key)).tolist()
+    except (TypeError, ValueError):
+        return np.asarray(key).tolist()
+
+
+def key_from_data(data):
+    """The key written by `key_to_data` (a typed key; raw keys draw the same numbers)."""
+    return None if data is None else jax.random.wrap_key_data(np.asarray(data, np.uint32))
+
+
 def save_npz(path, state: State, metadata: dict) -> Path:
     """Write the species arrays (cropped, by name) and JSON metadata to `path`."""
     path = Path(path)
@@ -89,6 +107,7 @@ def save_npz(path, state: State, metadata: dict) -> Path:
     meta.setdefault("time", float(state.time))
     meta.setdefault("size", list(state.shape))
     meta.setdefault("capacity", list(state.capacity))
+    meta.setdefault("growable", bool(state.growable))
     meta.setdefault("dtype", str(state.fields.dtype))
     np.savez_compressed(path, metadata=np.asarray(dumps(meta)), **arrays)
     return path
@@ -115,7 +134,8 @@ def load_npz(path) -> tuple[State, dict]:
     """Read a result written by `save_npz`: (State with its capacity, step and time; metadata)."""
     meta, arrays = read_npz(path, "result", lambda meta, data: [data[f"species_{n}"] for n in meta["species"]])
     capacity = tuple(meta.get("capacity") or arrays[0].shape)
-    grows = capacity != tuple(arrays[0].shape)
+    # a growing state saved once it filled its capacity is still a growing state
+    grows = bool(meta.get("growable", False)) or capacity != tuple(arrays[0].shape)
     state = State.from_arrays(arrays, capacity=capacity if grows else None, names=meta["species"])
     state = State(state.fields, state.size, meta.get("step", 0), meta.get("time", 0.0), state.names,
                   growable=state.growable)

@@ -386,7 +386,11 @@ def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources
     if (growth is not None or sources) and key is None:
         raise ValueError("key is required when growth or sources are used (they draw random numbers)")
     if growth is not None:
-        if not state.growable and is_concrete(state.size):
+        # no room is an error only if an expansion falls in this run (a resumed run's last
+        # period, or rate 0, has none)
+        none_due = is_concrete(growth.rate, dt, state.step, origin) and growth.expansions(
+            steps, dt, 0 if origin is None else int(state.step) - int(origin)) == 0
+        if not state.growable and is_concrete(state.size) and not none_due:
             raise SimulationError(
                 "this state has no room to grow: build it with State.from_arrays(..., capacity=(rows, cols)) "
                 "or use state.with_capacity((rows, cols))"

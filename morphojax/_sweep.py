@@ -56,7 +56,7 @@ from ._checks import default_float
 from ._descriptors import SETTLE_TOL, describe, relative_change
 from ._growth import Growth, growth_from_dict, growth_to_dict, source_from_dict, source_to_dict
 from ._initial import initial_state
-from ._io import dumps, model_from_dict, model_to_dict, read_npz, to_jsonable
+from ._io import dumps, key_from_data, key_to_data, model_from_dict, model_to_dict, read_npz, to_jsonable
 from ._lattice import max_stable_dt, normalise_boundary, normalise_stencil
 from ._models import AbstractModel
 from ._simulate import run_status
@@ -540,7 +540,7 @@ def load_sweep(path) -> SweepResult:
     axes = None if meta["axes"] is None else tuple(np.asarray(meta["axes"][k], float) for k in names)
     config = meta["config"]
     growth = growth_from_dict(config["growth"]) if config.get("growth") else None
-    key = jax.random.wrap_key_data(np.asarray(config["key_data"], np.uint32)) if config.get("key_data") else None
+    key = key_from_data(config.get("key_data") or None)
     initial = None
     if config.get("initial") == "shared-key" and key is not None:
         initial = initial_state(model_from_dict(config["model"]), jax.random.fold_in(key, 0), tuple(config["shape"]),
@@ -653,7 +653,7 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         "stencil": stencil, "bounds": _bounds_to_json(bounds),
         "growth": growth_to_dict(growth) if growth is not None else None,
         "sources": [source_to_dict(s) for s in sources], "settle_steps": tail, "settle_tol": settle_tol,
-        "keys": keys, "seed": seed, "key_data": _key_data(key), "shape": list(probe.shape),
+        "keys": keys, "seed": seed, "key_data": key_to_data(key), "shape": list(probe.shape),
         "capacity": list(probe.capacity) if probe.growable else None, "growable": probe.growable,
         "start_step": int(np.asarray(probe.step)), "start_time": float(np.asarray(probe.time)),
         "initial": starts.kind, "batch_size": chunk, "vmap_size": inner, "devices": [str(d) for d in devs],
@@ -876,15 +876,6 @@ def _gather_hosts(parts, n, per_host):
         g = np.asarray(multihost_utils.process_allgather(x))
         out.append(g.reshape((-1,) + g.shape[2:])[:n])
     return out
-
-
-def _key_data(key):
-    if key is None:
-        return None
-    try:
-        return np.asarray(jax.random.key_data(key)).tolist()
-    except (TypeError, ValueError):
-        return np.asarray(key).tolist()
 
 
 def _table(result: SweepResult, spec: int, wrap: bool, settle_tol: float, describe_members: bool) -> list:

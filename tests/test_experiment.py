@@ -58,14 +58,25 @@ def test_phases_chain_species_and_sizes(full_run):
     assert int(state.step) == 1400
 
 
-@pytest.mark.parametrize("stop", [300, 750, 1200])
+@pytest.mark.parametrize("stop", [300, 750, 1060, 1200])
 def test_resume_from_checkpoint_equals_uninterrupted(tmp_path, full_run, stop):
-    """Stop in the definition, development or maintenance phase, save, load, resume."""
+    """Stop in the definition, development (1060: after its last expansion, the capacity
+    full) or maintenance phase, save, load, resume."""
     path = tmp_path / "ckpt.npz"
     partial = mj.run_experiment(_two_phase(), seed=3, stop_after=stop)
     partial.save(path)
     resumed = mj.run_experiment(_two_phase(), resume=path)
     for x, y in zip(resumed.state.arrays(), full_run.state.arrays()):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_a_run_started_from_a_key_resumes_with_it(tmp_path, full_run):
+    path = tmp_path / "key.npz"
+    mj.run_experiment(_two_phase(), key=jax.random.key(3), stop_after=750).save(path)
+    _, meta = mj.load_npz(path)
+    assert meta["run"]["seed"] is None and meta["run"]["key"] == [0, 3]
+    resumed = mj.run_experiment(_two_phase(), resume=path)  # no key given: the recorded one
+    for x, y in zip(resumed.state.arrays(), full_run.state.arrays()):  # key(3) is what seed=3 uses
         np.testing.assert_array_equal(x, y)
 
 

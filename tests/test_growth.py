@@ -143,6 +143,37 @@ def test_index_histograms_match_their_law(growth):
         assert p_other < 1e-6
 
 
+@pytest.mark.parametrize("distribution", ["normal", "triangular"])
+def test_all_ones_weights_draw_the_law_itself(distribution):
+    """Weights multiply the law's exact masses: with all-ones weights the weighted sampler
+    draws the unweighted law (the clipped normal piles its tails on the edge cells)."""
+    growth = mj.Growth(1.0, distribution, spread=1.0)
+    n = 7
+    weighted = jax.jit(lambda k: growth.draw(k, jnp.int32(n), N_DRAWS, 16, jnp.ones(4)))
+    plain = jax.jit(lambda k: growth.draw(k, jnp.int32(n), N_DRAWS, 16))
+    from scipy import stats
+
+    for draw in (weighted, plain):
+        observed = np.bincount(np.asarray(draw(jax.random.key(3))), minlength=n)
+        assert stats.chisquare(observed, growth.law(n) * N_DRAWS)[1] > 1e-3, observed
+
+
+def test_draws_do_not_depend_on_the_block():
+    """Eager runs compute on a block of the capacity, jit on all of it: the random numbers
+    of divisions and sources must not depend on which (same key, same run)."""
+    state = mj.paper_state(jax.random.key(0), (8, 8), capacity=(30, 30))
+    mask = np.zeros((30, 30))
+    mask[2:5, 2:5] = 1.0
+    model, key = mj.Turing(4.2, 1.0), jax.random.key(1)
+    cases = [(mj.Growth(10.0, "triangular"), ()), (mj.Growth(10.0), (mj.Source("b", 0.5, "all"),)),
+             (mj.Growth(10.0), (mj.Source("b", 0.5, mask),))]
+    for growth, sources in cases:
+        run = lambda s: mj.simulate(model, s, 20, 0.01, growth=growth, sources=sources, key=key)
+        eager, jitted = run(state), jax.jit(run)(state)
+        assert eager.shape == (10, 10)
+        np.testing.assert_allclose(np.asarray(eager.fields), np.asarray(jitted.fields), atol=1e-5)
+
+
 def test_shuffle_uses_every_index_once_per_pass():
     growth = mj.Growth(1.0, "shuffle")
     for n, count in [(30, 30), (12, 40), (40, 40)]:
