@@ -21,10 +21,10 @@ from ._state import State
 from ._initial import constant_state, gray_scott_state, initial_state, paper_state, random_state, thesis_state
 from ._simulate import Barrier, SimulationError, rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
-from ._experiment import Experiment, Initial, Phase, Result, run_experiment
+from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._io import load_npz, save_npz
 from ._render import Gradient, montage, render, render_experiment, save_png, to_image
-from ._presets import PRESETS, preset
+from ._presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, relative_change
 from ._sweep import Member, SweepResult, load_sweep, map_image, parameter_map, sweep
 from ._automata import (
@@ -73,6 +73,8 @@ __all__ = [
     "laplacian",
     "LIFE_RULES",
     "LifeLike",
+    "leopard_row_weights",
+    "load_experiment",
     "load_npz",
     "load_sweep",
     "map_image",

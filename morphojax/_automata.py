@@ -112,8 +112,11 @@ def order_parameter(cells, k: int) -> Array:
 
 
 def changed_fraction(old, new) -> Array:
-    """Fraction of cells whose state differs between two lattices."""
-    return jnp.mean(jnp.asarray(old) != jnp.asarray(new))
+    """Fraction of cells whose state differs between two lattices (of the same shape)."""
+    old, new = jnp.asarray(old), jnp.asarray(new)
+    if old.shape != new.shape:
+        raise ValueError(f"changed_fraction: the lattices must have the same shape (got {old.shape} and {new.shape})")
+    return jnp.mean(old != new)
 
 
 def has_converged(old, new, threshold=0.01) -> Array:
@@ -281,9 +284,13 @@ class AbstractAutomaton(eqx.Module):
         snapshot every that many updates (`AutomatonRun.frames`); `history` records the
         fraction of changed cells of every update (`AutomatonRun.changes`)."""
         cells = _call(self, "_check_cells", cells)
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)):
+            raise ValueError(f"run.steps must be an integer number of updates (got {steps!r})")
         check_range(steps, "run.steps", low=0)
         check_range(threshold, "run.threshold (fraction of changed cells)", low=0.0, high=1.0)
         if save_every is not None:
+            if isinstance(save_every, bool) or not isinstance(save_every, (int, np.integer)):
+                raise ValueError(f"run.save_every must be an integer number of updates (got {save_every!r})")
             check_range(save_every, "run.save_every", low=1)
             save_every = int(save_every)
         plan = _call(self, "_plan", cells.shape)
@@ -490,6 +497,8 @@ class YoungCA(AbstractAutomaton):
                     f"(at most 6 decimal places; got common denominator {denominator}); round them or "
                     "pass an explicit denominator="
                 )
+        if is_concrete(denominator) and np.any(np.asarray(denominator) != np.round(np.asarray(denominator, float))):
+            raise ValueError(f"YoungCA.denominator must be a whole number (got {denominator!r})")
         self.denominator = jnp.asarray(denominator, dtype=jnp.int32)
 
     def __check_init__(self):

@@ -14,6 +14,7 @@ A resumed run therefore draws exactly the numbers the uninterrupted run would ha
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -22,8 +23,9 @@ import jax
 import numpy as np
 
 from . import _initial
-from ._checks import is_concrete
-from ._io import from_jsonable, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
+from ._checks import check_range, is_concrete
+from ._io import (dumps, from_jsonable, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict,
+                  save_npz, to_jsonable)
 from ._models import AbstractModel
 from ._simulate import Barrier, simulate
 from ._state import State
@@ -102,6 +104,23 @@ class Phase:
     frames: Any = 0
     name: str = ""
     capacity: tuple | None = None
+
+    def __post_init__(self):
+        from ._growth import Growth, Source
+
+        if not isinstance(self.model, AbstractModel):
+            raise ValueError(f"Phase.model must be a morphojax model such as mj.Turing(...) (got {self.model!r})")
+        if isinstance(self.steps, bool) or not isinstance(self.steps, (int, np.integer)):
+            raise ValueError(f"Phase.steps must be an integer number of steps (got {self.steps!r})")
+        check_range(self.steps, "Phase.steps", low=0)
+        check_range(self.dt, "Phase.dt", low=0.0, low_open=True)
+        if self.growth is not None and not isinstance(self.growth, Growth):
+            raise ValueError(f"Phase.growth must be None or a Growth(rate=...) (got {self.growth!r})")
+        sources = (self.sources,) if isinstance(self.sources, Source) else tuple(self.sources or ())
+        for src in sources:
+            if not isinstance(src, Source):
+                raise ValueError(f"Phase.sources must be Source(...) objects (got {src!r})")
+        object.__setattr__(self, "sources", sources)  # a single Source is accepted as (Source,)
 
     def prepare(self, state: State) -> State:
         """Apply the changes that happen at the start of the phase: reallocation to
@@ -246,8 +265,20 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
             state before them is treated as a constant (truncated backpropagation, see the
             fitting documentation for why long horizons need it).
     """
+    if stop_after is not None:
+        check_range(stop_after, "run_experiment.stop_after (steps)", low=1)
+    if checkpoint_every is not None:
+        check_range(checkpoint_every, "run_experiment.checkpoint_every (steps)", low=1)
     if resume is not None:
         state, meta = load_npz(resume) if not isinstance(resume, tuple) else resume
+        saved = meta.get("experiment")
+        if saved is not None and is_concrete([p.model for p in experiment.phases]) and \
+                json.loads(dumps(saved)) != json.loads(dumps(experiment.to_dict())):
+            raise ValueError(
+                f"run_experiment.resume: the checkpoint was written by another experiment "
+                f"({saved.get('name')!r}, or the same one with other parameters) than {experiment.name!r}; "
+                "resume it with mj.load_experiment(meta), as `morphojax resume` does"
+            )
         run = meta.get("run", {})
         seed = int(run["seed"]) if run.get("seed") is not None else seed
         key = key_from_data(run.get("key")) if key is None else key

@@ -20,6 +20,7 @@ grows by image interpolation to (rows + 1, cols + 1) instead of cell division.
 
 from __future__ import annotations
 
+import math
 
 import equinox as eqx
 import jax
@@ -68,15 +69,18 @@ class Growth(eqx.Module):
         check_choice(method, "growth method", METHODS)
         self.distribution = distribution
         self.method = method
-        self.spread = float(spread)
+        try:
+            self.spread = float(spread)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"Growth.spread must be a number, a fraction of the size (got {spread!r})") from err
         self.row_weights = None if row_weights is None else _weights(row_weights, "Growth.row_weights")
         self.col_weights = None if col_weights is None else _weights(col_weights, "Growth.col_weights")
 
     def __check_init__(self):
         check_finite(self.rate, "Growth.rate")
         check_range(self.rate, "Growth.rate (expansions per unit time)", low=0.0)
-        if not self.spread > 0:
-            raise ValueError(f"Growth.spread must be > 0 (got {self.spread})")
+        if not (self.spread > 0 and math.isfinite(self.spread)):
+            raise ValueError(f"Growth.spread (sd as a fraction of the size) must lie in (0, +inf) (got {self.spread})")
         if self.distribution == "shuffle" and (self.row_weights is not None or self.col_weights is not None):
             raise ValueError("Growth: row_weights/col_weights cannot be combined with distribution='shuffle'")
 
@@ -112,7 +116,8 @@ class Growth(eqx.Module):
             raise ValueError(
                 f"growth would take the lattice from {h}x{w} to {h + n}x{w + n} in {steps} steps "
                 f"({n} expansions, one every {self.period_steps(dt)} steps), beyond the capacity "
-                f"{cap[0]}x{cap[1]}; give the state a larger capacity (state.with_capacity)"
+                f"{cap[0]}x{cap[1]}; give the state a larger capacity (state.with_capacity, or in an experiment "
+                "Initial(capacity=...) / Phase(capacity=...))"
             )
 
     def maybe_expand(self, p, size, k, dt, key, overflow, repad):
@@ -151,7 +156,8 @@ class Growth(eqx.Module):
         """Which expansion created each cell: the paper's Fig. 3 as an array.
 
         Starts from a `shape` lattice of original cells (0) and applies `expansions`
-        expansions with this growth's law and weights (the draws `simulate` makes);
+        expansions with this growth's law and weights (its own draws from `key`, not
+        those a `simulate` run with the same key makes);
         the cell a division inserts (the lower / right copy) is labelled with the number of
         its expansion (1, 2, ...). Returns an int32 JAX array of shape (rows + expansions,
         cols + expansions). Expansion k adds cols + k - 1 cells (the new row) and
@@ -358,6 +364,9 @@ class Source(eqx.Module):
     def __check_init__(self):
         check_finite(self.amplitude, "Source.amplitude")
         check_range(self.amplitude, "Source.amplitude", low=0.0)
+        if self.mask is not None:
+            check_finite(self.mask, "Source.region (mask)")
+            check_range(self.mask, "Source.region (mask weights)", low=0.0)
 
     def check(self, state):
         """Raise a ValueError if the species or the mask does not fit `state` (before a run)."""

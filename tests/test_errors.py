@@ -39,6 +39,47 @@ def test_bad_model_parameters(make, pattern):
         make()
 
 
+_T = mj.Turing(4.0, 1.0)
+
+
+@pytest.mark.parametrize(
+    "make, pattern",
+    [
+        (lambda: mj.Phase(_T, steps=-5, dt=0.01), r"Phase\.steps must lie in \[0, \+inf\)"),
+        (lambda: mj.Phase(_T, steps=2.5, dt=0.01), r"Phase\.steps must be an integer"),
+        (lambda: mj.Phase(_T, steps=10, dt=0.0), r"Phase\.dt must lie in \(0, \+inf\)"),
+        (lambda: mj.Phase("turing", steps=10, dt=0.01), r"Phase\.model must be a morphojax model"),
+        (lambda: mj.Phase(_T, steps=10, dt=0.01, growth=2.0), r"Phase\.growth must be None or a Growth"),
+        (lambda: mj.Phase(_T, steps=10, dt=0.01, sources=("b",)), r"Phase\.sources must be Source"),
+        (lambda: mj.Growth(1.0, "normal", spread=np.inf), r"Growth\.spread .* must lie in \(0, \+inf\)"),
+        (lambda: mj.Growth(1.0, "normal", spread="x"), r"Growth\.spread must be a number"),
+        (lambda: mj.Source("b", 0.1, np.full((4, 4), np.nan)), r"Source\.region \(mask\)"),
+        (lambda: mj.Source("b", 0.1, -np.ones((4, 4))), r"Source\.region \(mask weights\) must lie in \[0"),
+    ],
+)
+def test_bad_experiment_parameters(make, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        make()
+
+
+def test_phase_takes_a_single_source():
+    src = mj.Source("b", 0.1)
+    assert mj.Phase(_T, steps=10, dt=0.01, sources=src).sources == (src,)
+
+
+def test_run_experiment_argument_errors(tmp_path):
+    exp = mj.Experiment("tiny", mj.Initial("paper", (8, 8)), phases=(mj.Phase(_T, steps=20, dt=0.01),))
+    with pytest.raises(ValueError, match=r"run_experiment\.stop_after \(steps\) must lie in \[1, \+inf\)"):
+        mj.run_experiment(exp, stop_after=0)
+    with pytest.raises(ValueError, match=r"run_experiment\.checkpoint_every \(steps\) must lie in \[1"):
+        mj.run_experiment(exp, checkpoint_path=tmp_path / "c.npz", checkpoint_every=-1)
+    mj.run_experiment(exp, stop_after=10).save(tmp_path / "half.npz")
+    other = mj.Experiment("tiny", exp.initial, phases=(mj.Phase(mj.Turing(5.0, 1.0), steps=20, dt=0.01),))
+    with pytest.raises(ValueError, match=r"resume: the checkpoint was written by another experiment"):
+        mj.run_experiment(other, resume=tmp_path / "half.npz")
+    assert int(mj.run_experiment(exp, resume=tmp_path / "half.npz").state.step) == 20
+
+
 def test_state_errors():
     with pytest.raises(ValueError, match="same shape"):
         mj.State.from_arrays([np.ones((4, 4)), np.ones((4, 5))])
