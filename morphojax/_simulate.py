@@ -697,6 +697,8 @@ def rollout(model: AbstractModel, state: State, steps: int, dt, every: int, boun
     opts.update(kwargs)
     cfg, dt, sources = _prepare(model, state, steps, dt, boundary, opts["stencil"], opts["bounds"], opts["growth"],
                                 opts["sources"], opts["key"], opts["check_dt"], opts["origin"])
+    if every > steps:  # no snapshot would fall in the run
+        raise ValueError(f"rollout.every must lie in [1, steps = {steps}] (got {every})")
     final, bad, overflow, frames = _drive(
         model, state, steps, dt, cfg, opts["growth"], sources, opts["key"], opts["origin"], opts["checkpoint"],
         opts["progress"], int(every), save or _save_state, type(model).__name__,

@@ -111,6 +111,8 @@ def test_simulate_argument_errors(state):
         mj.simulate(mj.Turing(ratio=np.ones((5, 7))), state, steps=1, dt=0.001)
     with pytest.raises(ValueError, match="unknown bounds"):
         mj.simulate(model, state, steps=1, dt=0.01, bounds="soft")
+    with pytest.raises(ValueError, match=r"rollout\.every must lie in \[1, steps = 10\] \(got 20\)"):
+        mj.rollout(model, state, steps=10, dt=0.01, every=20)
 
 
 def test_unstable_dt_reports_the_largest_stable_dt(state):
