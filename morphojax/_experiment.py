@@ -273,7 +273,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
         state, meta = load_npz(resume) if not isinstance(resume, tuple) else resume
         saved = meta.get("experiment")
         if saved is not None and is_concrete([p.model for p in experiment.phases]) and \
-                json.loads(dumps(saved)) != json.loads(dumps(experiment.to_dict())):
+                _what_runs(saved) != _what_runs(experiment.to_dict()):
             raise ValueError(
                 f"run_experiment.resume: the checkpoint was written by another experiment "
                 f"({saved.get('name')!r}, or the same one with other parameters) than {experiment.name!r}; "
@@ -334,6 +334,13 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
     meta = _meta(experiment, record, len(experiment.phases), 0, origin, timings)
     meta["run"]["seconds"] = time.perf_counter() - t_start
     return Result(state, experiment, snapshots, meta)
+
+
+def _what_runs(data: dict) -> dict:
+    """The parts of an experiment's plain data that decide its result (its initial state and
+    phases, less their names and snapshot settings), normalised through JSON."""
+    phases = [{k: v for k, v in p.items() if k not in ("name", "frames")} for p in data["phases"]]
+    return json.loads(dumps({"initial": data["initial"], "phases": phases}))
 
 
 def _frame_steps(phase: Phase) -> list[int]:
