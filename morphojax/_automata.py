@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from ._checks import check_choice, check_range, is_concrete
+from ._checks import check_choice, check_count, check_range, is_concrete
 
 YOUNG_P = 0.015  # Young's probability that a cell starts differentiated
 NEIGHBOURHOODS = ("disc", "box")
@@ -284,14 +284,10 @@ class AbstractAutomaton(eqx.Module):
         snapshot every that many updates (`AutomatonRun.frames`); `history` records the
         fraction of changed cells of every update (`AutomatonRun.changes`)."""
         cells = _call(self, "_check_cells", cells)
-        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)):
-            raise ValueError(f"run.steps must be an integer number of updates (got {steps!r})")
-        check_range(steps, "run.steps", low=0)
+        check_count(steps, "run.steps", "updates")
         check_range(threshold, "run.threshold (fraction of changed cells)", low=0.0, high=1.0)
         if save_every is not None:
-            if isinstance(save_every, bool) or not isinstance(save_every, (int, np.integer)):
-                raise ValueError(f"run.save_every must be an integer number of updates (got {save_every!r})")
-            check_range(save_every, "run.save_every", low=1)
+            check_count(save_every, "run.save_every", "updates", low=1)
             save_every = int(save_every)
         plan = _call(self, "_plan", cells.shape)
         threshold = np.float32(threshold) if is_concrete(threshold) else jnp.asarray(threshold, jnp.float32)

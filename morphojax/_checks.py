@@ -73,6 +73,14 @@ def check_range(value, name: str, *, low=None, high=None, low_open=False, high_o
         raise ValueError(f"{name} must lie in {interval} (got {_show(arr)})")
 
 
+def check_count(value, name: str, unit: str, *, low=0) -> None:
+    """Raise ValueError unless `value` is an integer (Python or NumPy, not bool) >= `low`:
+    a number of steps, updates or the like (`unit` names them in the message)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer number of {unit} (got {value!r})")
+    check_range(value, name, low=low)
+
+
 def check_choice(value, name: str, allowed) -> None:
     if value not in allowed:
         options = ", ".join(repr(a) for a in allowed)

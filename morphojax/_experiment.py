@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 from . import _initial
-from ._checks import check_range, is_concrete
+from ._checks import check_count, check_range, is_concrete
 from ._io import (dumps, from_jsonable, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict,
                   save_npz, to_jsonable)
 from ._models import AbstractModel
@@ -110,9 +110,7 @@ class Phase:
 
         if not isinstance(self.model, AbstractModel):
             raise ValueError(f"Phase.model must be a morphojax model such as mj.Turing(...) (got {self.model!r})")
-        if isinstance(self.steps, bool) or not isinstance(self.steps, (int, np.integer)):
-            raise ValueError(f"Phase.steps must be an integer number of steps (got {self.steps!r})")
-        check_range(self.steps, "Phase.steps", low=0)
+        check_count(self.steps, "Phase.steps", "steps")
         check_range(self.dt, "Phase.dt", low=0.0, low_open=True)
         if self.growth is not None and not isinstance(self.growth, Growth):
             raise ValueError(f"Phase.growth must be None or a Growth(rate=...) (got {self.growth!r})")

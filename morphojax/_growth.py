@@ -104,12 +104,18 @@ class Growth(eqx.Module):
             return 0
         return -(-(done + steps) // period) - (-(-done // period))
 
+    def due(self, state, steps: int, dt, origin=None) -> int | None:
+        """Expansions in the next `steps` steps of a phase that started at step `origin`
+        (None: this run starts the phase), None when the values are traced."""
+        if not is_concrete(self.rate, dt, state.step, origin):
+            return None
+        return self.expansions(steps, dt, steps_done(state, origin))
+
     def check_capacity(self, state, steps: int, dt, origin=None) -> None:
         """Raise before the run if the state cannot hold all the expansions it will get."""
-        if not is_concrete(self.rate, dt, state.size, state.step):
+        n = self.due(state, steps, dt, origin)
+        if n is None or not is_concrete(state.size):
             return
-        done = int(state.step) - (int(state.step) if origin is None else int(origin))
-        n = self.expansions(steps, dt, done)
         h, w = state.shape
         cap = state.capacity
         if h + n > cap[0] or w + n > cap[1]:
@@ -241,6 +247,12 @@ class Growth(eqx.Module):
         p = np.asarray(self.pmf_profile(jnp.ones(1) if weights is None else jnp.asarray(weights))(np.arange(n), n),
                        float)
         return p / p.sum()
+
+
+def steps_done(state, origin) -> int:
+    """Steps of its phase a concrete state has done (`origin`: the phase's first step;
+    None: the state is at the phase's start)."""
+    return 0 if origin is None else int(state.step) - int(origin)
 
 
 def _draw_weighted(key, n, count: int, profile, cap: int):

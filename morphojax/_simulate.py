@@ -25,6 +25,7 @@ import numpy as np
 from jax import Array
 
 from ._checks import as_float_array, check_finite, check_range, is_concrete
+from ._growth import steps_done
 from ._lattice import active_mask, laplacian_padded, max_stable_dt, normalise_boundary, normalise_stencil, pad, repad
 from ._models import AbstractModel, per_species
 from ._state import State
@@ -388,9 +389,7 @@ def _prepare(model, state, steps, dt, boundary, stencil, bounds, growth, sources
     if growth is not None:
         # no room is an error only if an expansion falls in this run (a resumed run's last
         # period, or rate 0, has none)
-        none_due = is_concrete(growth.rate, dt, state.step, origin) and growth.expansions(
-            steps, dt, 0 if origin is None else int(state.step) - int(origin)) == 0
-        if not state.growable and is_concrete(state.size) and not none_due:
+        if not state.growable and is_concrete(state.size) and growth.due(state, steps, dt, origin) != 0:
             raise SimulationError(
                 "this state has no room to grow: build it with State.from_arrays(..., capacity=(rows, cols)) "
                 "or use state.with_capacity((rows, cols))"
@@ -490,7 +489,7 @@ def _block_schedule(state, growth, steps: int, dt, origin, per: int, ratio: floa
         ratio = float("inf")  # small lattices: one block, one compiled step
     with jax.ensure_compile_time_eval():
         h, w = state.shape
-        done = 0 if origin is None else int(state.step) - int(origin)
+        done = steps_done(state, origin)
         cap_r = state.capacity[0]
         ends = [min((j + 1) * per, steps) for j in range(-(-steps // per))] if steps else []
         need = [min(h + (growth.expansions(e, dt, done) if growth is not None else 0), cap_r) for e in ends]
@@ -519,7 +518,7 @@ def _growth_plan(state, growth, steps: int, dt, origin, check: int = 128, ratio:
         ratio = float("inf")  # small lattices: one block, one compiled step (compiling costs more)
     with jax.ensure_compile_time_eval():
         period = growth.period_steps(dt)
-        done = int(state.step) - int(state.step if origin is None else origin)
+        done = steps_done(state, origin)
         h, w = state.shape
     cap_r, cap_c = state.capacity
     segments, t = [], 0
