@@ -1,6 +1,7 @@
 """Speed of Young's automaton (morphojax.YoungCA) against NumPy, printed as a markdown table.
 
     python benchmarks/bench_automata.py [--repeats 7] [--quick]
+    python benchmarks/bench_automata.py --methods      # the counting methods side by side
 
 Cases:
 1. paper 002 Table 1: L = 30, K = 1, 3D, (R_act, w_act, R_inh, w_inh) = (3.2, 1, 6, -0.2),
@@ -9,6 +10,10 @@ Cases:
    (< 1% of the cells changed);
 3. a 1024 x 1024 2D run of Young's automaton (r1 = 2.30, r2 = 6.01, w1 = 1, w2 = -0.2,
    p = 0.015) for 30 steps (paper 003's run length).
+
+`--methods` times the three exact counting methods (direct sums, FFT, matrix-product
+transforms) on the same runs, interleaved in one process, over 3D and 2D lattice sizes,
+with the method `method="auto"` picks: the measurements behind the cost model.
 
 Every time is end to end (the `ca.run` call until its result is ready, compiled code
 reused), the median of several runs; compile time is reported apart. Two NumPy
@@ -138,6 +143,38 @@ def bench_case(name, species, shape, steps, stop, p, repeats, oracle_steps, nump
     }
 
 
+def compare_methods(repeats):
+    """ms per step of each counting method, interleaved, and what `auto` picks."""
+    cases = [((n,) * 3, [(3.2, 6.0, 1.0, -0.2)]) for n in (16, 20, 24, 30, 32, 36, 40, 48, 64)]
+    cases += [((30,) * 3, [(3.2, 6.0, 1.0, -0.2)] * 2), ((25, 40, 30), [(3.2, 6.0, 1.0, -0.2)])]
+    cases += [((n, n), [(2.30, 6.01, 1.0, -0.2)]) for n in (64, 128, 250, 256)]
+    methods = ("direct", "fft", "matmul")
+    print("| lattice | K | " + " | ".join(methods) + " | auto picks | fastest |")
+    print("|---|---|" + "---|" * (len(methods) + 2))
+    for shape, species in cases:
+        steps = max(5, min(100, int(3e6 / np.prod(shape))))
+        cells = random_cells(jax.random.key(0), shape, len(species), None if len(shape) == 3 else 0.015)
+        models = {m: YoungCA(species, method=m) for m in methods}
+        for m in methods:
+            try:
+                models[m]._plan(shape)
+            except ValueError:  # matmul: fields too large for its float32 error bound
+                del models[m]
+        results = {m: np.asarray(_run_jax(ca, cells, steps, False).cells) for m, ca in models.items()}
+        assert all(np.array_equal(results["fft"], r) for r in results.values()), shape
+        times = {m: [] for m in models}
+        for _ in range(repeats):
+            for m, ca in models.items():
+                t0 = time.perf_counter()
+                _run_jax(ca, cells, steps, False)
+                times[m].append((time.perf_counter() - t0) / steps)
+        med = {m: statistics.median(t) for m, t in times.items() if t}
+        auto = YoungCA(species)._plan(shape).method
+        print(f"| {'x'.join(map(str, shape))} | {len(species)} | "
+              + " | ".join(f"{med[m] * 1e3:.3f} ms" if m in med else "n/a" for m in methods)
+              + f" | {auto} | {min(med, key=med.get)} |")
+
+
 def fmt_s(s):
     return f"{s * 1e3:.1f} ms" if s < 1 else f"{s:.2f} s"
 
@@ -146,7 +183,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--quick", action="store_true", help="smaller repeats and oracle steps (smoke test)")
+    parser.add_argument("--methods", action="store_true", help="time the counting methods side by side")
     args = parser.parse_args(argv)
+    if args.methods:
+        return compare_methods(args.repeats)
     r = 3 if args.quick else args.repeats
     dur = (3.2, 6.0, 1.0, -0.2)
     cases = [

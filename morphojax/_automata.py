@@ -28,11 +28,14 @@ Units and conventions:
   integer, e.g. 5 for 1 and -0.2) and the fields are computed as integers, so a tie such
   as 3 x 1 + 15 x (-0.2) = 0 is an exact zero and keeps the state.
 
-Neighbour counts are exact integers, computed either by sums of shifted slices of a
-periodically padded copy (`method="direct"`, fast for small radii and in 2D) or by FFT
+Neighbour counts are exact integers, computed by sums of shifted slices of a
+periodically padded copy (`method="direct"`, fast for small radii and in 2D), by FFT
 convolution with kernel spectra computed once per run (`method="fft"`, fast for large
-3D neighbourhoods), the results rounded to integers. `method="auto"` picks the cheaper
-one from a cost model; both give identical results.
+3D neighbourhoods), or by real separable Fourier transforms as matrix products on every
+axis but the first, with the kernel's few offsets along the first axis summed directly
+(`method="matmul"`, fast for small 3D lattices on CPU, where matrix products run near the
+core's peak and the FFT does not); the last two are rounded to integers. `method="auto"`
+picks the cheapest from a cost model; all give identical results.
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ from ._checks import check_choice, check_count, check_range, is_concrete
 
 YOUNG_P = 0.015  # Young's probability that a cell starts differentiated
 NEIGHBOURHOODS = ("disc", "box")
-METHODS = ("auto", "direct", "fft")
+METHODS = ("auto", "direct", "fft", "matmul")
 _SLACK = 1e-6  # relative slack on the radii, see the module docstring
 _MAX_DENOMINATOR = 10**6
 _INT32_MAX = 2**31 - 1
@@ -61,6 +64,12 @@ _INT32_MAX = 2**31 - 1
 # species) while the sum of their magnitudes keeps the rounding error far below 1/2;
 # otherwise the activator and ring counts are transformed separately (each exact).
 _FFT_ERROR_SCALE = 4.0 * float(np.finfo(np.float32).eps)
+# cost model of `method="auto"`, per lattice cell and step, measured on a 2-core x86 CPU
+# (AVX2; benchmarks/bench_automata.py --methods): an FFT pair ~0.45 ns x log2 N; a
+# multiply-add of the matrix-product transforms ~0.05 ns (one core near its peak); an
+# add of shifted int16 slices ~0.07 ns while they stay in cache (2D, or small 3D
+# lattices), ~1.5 ns once 3D intermediates spill to memory
+_NS_FFT, _NS_MAC, _NS_ADD_CACHED, _NS_ADD_SPILLED = 0.45, 0.05, 0.07, 1.5
 
 
 # ---- small public helpers ----------------------------------------------------------------
@@ -415,10 +424,11 @@ def _direct_adds(thresholds, dim: int, neighbourhood: str) -> int:
 class _YoungPlan(NamedTuple):
     """Static configuration of the counting, worked out before compiling."""
 
-    method: str  # "direct" or "fft"
-    combined: bool  # fft: one weighted kernel per species (else separate counts)
+    method: str  # "direct", "fft" or "matmul"
+    combined: bool  # fft / matmul: one weighted kernel per species (else separate counts)
     thresholds: tuple | None  # direct: ((T_act, T_inh), ...) per species
     count_dtype: str
+    extent: int = 0  # matmul: the kernels' half-width along the first axis
 
 
 # ---- the automaton -----------------------------------------------------------------------
@@ -442,7 +452,7 @@ class YoungCA(AbstractAutomaton):
     `denominator` (an integer leaf) is the common denominator the weights are compared
     over, exactly, as the integers round(w x denominator); by default the smallest one for
     the weights' decimal forms (at most 10^6). `method` picks the counting ("auto",
-    "direct" or "fft"; all exact and identical).
+    "direct", "fft" or "matmul"; all exact and identical).
     """
 
     r_act: Array
@@ -587,7 +597,8 @@ class YoungCA(AbstractAutomaton):
         if not is_concrete(self.r_act, self.r_inh, self.w_act, self.w_inh, self.denominator):
             return None
         return (type(self), self.neighbourhood, self.include_self, self.method, tuple(shape), int(self.denominator),
-                *(np.asarray(getattr(self, n)).tobytes() for n in ("r_act", "r_inh", "w_act", "w_inh")))
+                *(np.asarray(getattr(self, n)).tobytes() for n in ("r_act", "r_inh", "w_act", "w_inh")),
+                jax.default_backend())
 
     def _plan(self, shape) -> _YoungPlan:
         key = _call(self, "_key", shape)
@@ -595,7 +606,7 @@ class YoungCA(AbstractAutomaton):
 
     def _precomputed(self, plan, shape):
         size = (1 if plan.combined else 2) * self.n_species * math.prod(shape[:-1]) * (shape[-1] // 2 + 1)
-        key = _call(self, "_key", shape) if plan.method == "fft" and size <= _SPECTRA_MAX_SIZE else None
+        key = _call(self, "_key", shape) if plan.method != "direct" and size <= _SPECTRA_MAX_SIZE else None
         if key is None:  # traced, direct, or large (computing them in each run then costs little)
             return None
         if key not in _SPECTRA:
@@ -637,16 +648,29 @@ class YoungCA(AbstractAutomaton):
                     "32-bit integers; use weights with fewer decimals or smaller radii"
                 )
             combined = bound * _FFT_ERROR_SCALE * max(1.0, math.log2(n)) < 0.1
+            # matrix-product transforms: float32 sums as long as the transformed sides
+            # (worst-case error growth; measured errors are ~1e-4, 400x below at 64^3)
+            exact_matmul = bound * _FFT_ERROR_SCALE * max(1, sum(shape[1:])) < 0.1
+        else:
+            exact_matmul = False
         method = self.method
+        if method == "matmul" and not exact_matmul:
+            raise ValueError(
+                "YoungCA.method 'matmul' needs concrete weights whose fields (weights x denominator x neighbour "
+                "counts) stay small enough for exact float32 transforms; use 'fft' or 'direct'"
+            )
         if method == "auto":
             adds = sum(_direct_adds(t, dim, self.neighbourhood) for t in thresholds)
-            # measured on a 2-core x86 CPU, per cell: ~0.45 ns x log2 N per transform pair;
-            # ~0.07 ns per add of shifted int16 slices while they stay in cache (2D, or
-            # small 3D lattices), ~1.5 ns once 3D intermediates spill to memory
-            per_add = 0.07 if dim <= 2 or n <= 10**5 else 1.5
-            fft_pairs = self.n_species * (1.0 if combined else 1.5)
-            method = "direct" if per_add * adds < 0.45 * math.log2(max(n, 2)) * fft_pairs else "fft"
-        return _YoungPlan(method, combined, thresholds if method == "direct" else None, count_dtype)
+            per_add = _NS_ADD_CACHED if dim <= 2 or n <= 10**5 else _NS_ADD_SPILLED
+            costs = {"direct": per_add * adds,
+                     "fft": _NS_FFT * math.log2(max(n, 2)) * self.n_species * (1.0 if combined else 1.5)}
+            # matrix products only pay on CPU, and only for one species (K > 1 measured
+            # slower than the FFT's batched transforms at every size)
+            if exact_matmul and dim >= 2 and self.n_species == 1 and jax.default_backend() == "cpu":
+                costs["matmul"] = _matmul_cost(shape, extent)
+            method = min(costs, key=costs.get)
+        return _YoungPlan(method, combined or method == "matmul", thresholds if method == "direct" else None,
+                          count_dtype, extent if method == "matmul" else 0)
 
     # ---- counting -----------------------------------------------------------------------
     def _kernels(self, shape, edge=None):
@@ -685,19 +709,18 @@ class YoungCA(AbstractAutomaton):
                     n_act = n_act - ind.astype(jnp.int32)
                 out.append(a[j] * n_act + b[j] * n_ring)
             return jnp.stack(out)
-        axes = tuple(range(1, cells.ndim + 1))
-        ind = jnp.stack([(cells == j) for j in range(k)]).astype(spectra.dtype)
-        f = jnp.fft.rfftn(ind, axes=axes)
+        ind = jnp.stack([(cells == j) for j in range(k)]).astype(jnp.float32)
         if plan.combined:
-            w = jnp.fft.irfftn(_times_real(f, spectra), s=cells.shape, axes=axes)
-            return jnp.round(w).astype(jnp.int32)
+            return jnp.round(_convolve(ind, spectra, plan)).astype(jnp.int32)
+        axes = tuple(range(1, cells.ndim + 1))
+        f = jnp.fft.rfftn(ind, axes=axes)
         fs = jnp.concatenate([f, f])
         counts = jnp.round(jnp.fft.irfftn(_times_real(fs, spectra), s=cells.shape, axes=axes)).astype(jnp.int32)
         bc = (slice(None),) + (None,) * cells.ndim
         return a[bc] * counts[:k] + b[bc] * counts[k:]
 
     def _spectra(self, plan: _YoungPlan, shape):
-        if plan.method != "fft":
+        if plan.method == "direct":
             return None
         act, ring = self._kernels(shape)
         if plan.combined:
@@ -706,16 +729,18 @@ class YoungCA(AbstractAutomaton):
             kernel = a[bc].astype(act.dtype) * act + b[bc].astype(act.dtype) * ring
         else:
             kernel = jnp.concatenate([act, ring])
+        if plan.method == "matmul":
+            return _matmul_spectra(kernel, plan.extent)
         axes = tuple(range(1, len(shape) + 1))
         return jnp.fft.rfftn(kernel, axes=axes).real  # even kernel: real spectrum
 
-    def _binary_fft(self, plan) -> bool:
+    def _binary(self, plan) -> bool:
         """One species with one weighted kernel: the loop carries the float indicator of
         species 0 straight into the transform (no conversions; ~10% of the step)."""
-        return plan.method == "fft" and plan.combined and self.n_species == 1
+        return plan.method in ("fft", "matmul") and plan.combined and self.n_species == 1
 
     def _codec(self, plan, dtype) -> _Codec:
-        if not self._binary_fft(plan):
+        if not self._binary(plan):
             return _identity_codec(dtype)
         return _Codec(lambda c: (c == 0).astype(jnp.float32),
                       lambda x: jnp.where(x > 0.5, 0, 1).astype(dtype))
@@ -723,11 +748,11 @@ class YoungCA(AbstractAutomaton):
     def _stepper(self, plan, shape, pre=None):
         spectra = self._spectra(plan, shape) if pre is None else pre
         k = self.n_species
-        if self._binary_fft(plan):
+        if self._binary(plan):
             def binary_step(ind):
                 # W x denominator is an integer and the transform error is < 0.1 (plan):
                 # W > 0 <=> w > 1/2 and W < 0 <=> w < -1/2, exactly
-                w = jnp.fft.irfftn(_times_real(jnp.fft.rfftn(ind), spectra[0]), s=shape)
+                w = _convolve(ind[None], spectra, plan)[0]
                 return jnp.where(w > 0.5, 1.0, jnp.where(w < -0.5, 0.0, ind)).astype(ind.dtype)
 
             return binary_step
@@ -828,6 +853,61 @@ def _jit_spectra(ca, *, plan, shape):
 def _times_real(f, s):
     """Complex spectrum times a real one (cheaper than promoting `s` to complex)."""
     return jax.lax.complex(jnp.real(f) * s, jnp.imag(f) * s)
+
+
+# ---- convolution by matrix-product transforms ---------------------------------------------
+# The kernels are even in every axis (a function of |offset_i| on the periodic lattice), so
+# the real separable transform with cas(t) = cos(t) + sin(t) along each axis diagonalises
+# the convolution like the FFT does, with the kernel's real spectrum as eigenvalues; cas
+# matrices are symmetric and their own inverse up to 1/n. Along the first lattice axis the
+# kernel spans only 2 extent + 1 offsets, which are summed directly in the transformed
+# space of the other axes.
+def _cas_matrix(n: int) -> np.ndarray:
+    t = 2.0 * np.pi * np.outer(np.arange(n), np.arange(n)) / n
+    return (np.cos(t) + np.sin(t)).astype(np.float32)
+
+
+def _matmul_cost(shape, extent: int) -> float:
+    """Estimated ns per cell and step of one species' `_convolve` by matrix products."""
+    return _NS_MAC * (2 * sum(shape[1:]) + 2 * extent + 1)
+
+
+def _cas_transform(y: Array, mats: dict) -> Array:
+    """The cas transform of y (B, n0, n1, ..., nm) over the axes after n0, each one matrix
+    product that drops the axis and appends its transform (so the last axis stays in
+    place), leaving those axes in reverse order: applied twice it gives y x prod(n_i)
+    back in the original order. (Measured: plain products with XLA's layout copies beat
+    products that avoid the copies with transposed operands.)"""
+    for axis in range(y.ndim - 1, 1, -1):
+        y = jax.lax.dot_general(y, mats[y.shape[axis]], (((axis,), (0,)), ((), ())),
+                                precision=jax.lax.Precision.HIGHEST)  # no TF32 on GPUs
+    return y
+
+
+def _matmul_spectra(kernel: Array, extent: int) -> dict:
+    """What `_convolve` needs for kernels (B, n0, ...): the cas matrices, and the cas
+    spectra over the other axes of the kernels' slices at first-axis offsets 0..extent,
+    in `_cas_transform`'s layout and divided by the size of those axes ("taps")."""
+    rest = kernel.shape[2:]
+    mats = {n: jnp.asarray(_cas_matrix(n)) for n in sorted(set(rest))}
+    taps = _cas_transform(kernel[:, :extent + 1].astype(jnp.float32), mats) / math.prod(rest)
+    return {"taps": taps, "mats": mats}
+
+
+def _convolve(ind: Array, spectra, plan: _YoungPlan) -> Array:
+    """Periodic convolution of each of ind (B, *lattice) with its combined kernel."""
+    if plan.method == "fft":
+        axes = tuple(range(1, ind.ndim))
+        return jnp.fft.irfftn(_times_real(jnp.fft.rfftn(ind, axes=axes), spectra), s=ind.shape[1:], axes=axes)
+    taps, mats, e = spectra["taps"], spectra["mats"], plan.extent
+    y = _cas_transform(ind, mats)
+    b, n0 = y.shape[:2]
+    y3, t3 = y.reshape(b, n0, -1), taps.reshape(b, e + 1, -1)  # first-axis shifts move whole rows
+    padded = jnp.concatenate([y3[:, n0 - e:], y3, y3[:, :e]], axis=1) if e else y3
+    w = t3[:, :1] * y3
+    for t in range(1, e + 1):
+        w = w + t3[:, t:t + 1] * (padded[:, e + t:e + t + n0] + padded[:, e - t:e - t + n0])
+    return _cas_transform(w.reshape(y.shape), mats)
 
 
 def weighted_volume_difference(ca: YoungCA, dim: int = 3, *, discrete: bool = False) -> Array:

@@ -53,7 +53,7 @@ def _state(shape, k, seed):
     return np.random.default_rng(seed).integers(0, k + 1, shape).astype(np.int8)
 
 
-@pytest.mark.parametrize("method", ["direct", "fft"])
+@pytest.mark.parametrize("method", ["direct", "fft", "matmul"])
 @pytest.mark.parametrize("case", range(len(CASES)), ids=lambda i: f"{len(CASES[i][0])}d-K{len(CASES[i][1])}-{CASES[i][2]}")
 def test_step_matches_oracle_exactly(case, method):
     shape, species, neighbourhood, include_self = CASES[case]
@@ -77,6 +77,18 @@ def test_fft_separate_counts_path_matches_oracle():
     np.testing.assert_array_equal(np.asarray(ca.step(cells)), oracle.young_step(cells, species))
 
 
+def test_matmul_refuses_fields_too_large_for_exact_float32():
+    """Weights over a denominator of 10^4 make the fields too large for the matrix-product
+    transforms' error bound: an explicit method="matmul" is a ValueError, and "auto"
+    never picks it (it falls back to an exact method)."""
+    species = [(2.0, 5.0, 1.0, -0.1234)]
+    with pytest.raises(ValueError, match=r"YoungCA\.method 'matmul'"):
+        YoungCA(species, method="matmul")._plan((16, 16, 16))
+    assert YoungCA(species)._plan((16, 16, 16)).method != "matmul"
+    if jax.default_backend() == "cpu":  # small 3D lattices, K = 1
+        assert YoungCA([DUR])._plan((16, 16, 16)).method == "matmul"
+
+
 def _tie_lattice(target_state):
     """A 15 x 15 lattice whose centre has 3 species-0 cells in its activator disc
     (radius 1.5: the 8 Moore neighbours) and 15 in its ring (1.5 < d <= 3: 20 cells)."""
@@ -91,7 +103,7 @@ def _tie_lattice(target_state):
     return cells
 
 
-@pytest.mark.parametrize("method", ["direct", "fft"])
+@pytest.mark.parametrize("method", ["direct", "fft", "matmul"])
 @pytest.mark.parametrize("target", [0, 1])
 def test_exact_tie_keeps_state(method, target):
     """3 x 1 + 15 x (-0.2) = 0 exactly: the cell keeps its state (float32 sums are not 0)."""
@@ -111,7 +123,7 @@ def test_exact_tie_survives_tracing():
     assert int(out[7, 7]) == 0
 
 
-@pytest.mark.parametrize("method", ["direct", "fft"])  # fft with K = 1 carries a float indicator
+@pytest.mark.parametrize("method", ["direct", "fft", "matmul"])  # fft with K = 1 carries a float indicator
 def test_run_is_repeated_step_and_records(method):
     ca = YoungCA([YOUNG], method=method)
     cells = random_cells(jax.random.key(3), (24, 24), 1, p=0.1)
@@ -127,7 +139,7 @@ def test_run_is_repeated_step_and_records(method):
     assert float(out.changes[-1]) == pytest.approx(float(changed_fraction(ca.run(cells, 5).cells, out.cells)))
     zero = ca.run(cells, 0)
     assert int(zero.steps) == 0 and not bool(zero.converged)
-    assert ca._binary_fft(ca._plan(cells.shape)) == (method == "fft")
+    assert ca._binary(ca._plan(cells.shape)) == (method != "direct")
     early = ca.run(cells, 40, stop_at_convergence=True, threshold=0.02)
     n = int(early.steps)
     assert bool(early.converged) and 0 < n < 40
@@ -301,11 +313,12 @@ def test_vmap_over_keys_and_parameters():
         jax.vmap(lambda w: YoungCA([(2.3, 6.01, 1.0, w)]).step(cells))(jnp.asarray(ws))
 
 
-@pytest.mark.parametrize("method", ["direct", "fft"])
+@pytest.mark.parametrize("method", ["direct", "fft", "matmul"])
 def test_jit_closing_over_a_model(method):
     """A model built outside (never called before) or inside a jitted function, from
     Python numbers: the plan and the cached kernel spectra are worked out concretely."""
-    species = [(2.2, 5.5, 1.0, -0.3)] if method == "direct" else [(2.1, 5.4, 1.0, -0.3)]  # not cached yet
+    species = {"direct": [(2.2, 5.5, 1.0, -0.3)], "fft": [(2.1, 5.4, 1.0, -0.3)],
+               "matmul": [(2.05, 5.3, 1.0, -0.3)]}[method]  # not cached yet
     cells = _state((20, 20), 1, 12)
     ref = cells
     for _ in range(3):
