@@ -67,8 +67,8 @@ _FFT_ERROR_SCALE = 4.0 * float(np.finfo(np.float32).eps)
 # cost model of `method="auto"`, per lattice cell and step, measured on a 2-core x86 CPU
 # (AVX2; benchmarks/bench_automata.py --methods): an FFT pair ~0.45 ns x log2 N; a
 # multiply-add of the matrix-product transforms ~0.05 ns (one core near its peak); an
-# add of shifted int16 slices ~0.07 ns while they stay in cache (2D, or small 3D
-# lattices), ~1.5 ns once 3D intermediates spill to memory
+# add of shifted int16 slices ~0.07 ns while they stay in cache (2D, or 3D up to 1e5
+# cells, 3e5 = 64^3 for K = 1), ~1.5 ns once 3D intermediates spill to memory
 _NS_FFT, _NS_MAC, _NS_ADD_CACHED, _NS_ADD_SPILLED = 0.45, 0.05, 0.07, 1.5
 
 
@@ -661,7 +661,10 @@ class YoungCA(AbstractAutomaton):
             )
         if method == "auto":
             adds = sum(_direct_adds(t, dim, self.neighbourhood) for t in thresholds)
-            per_add = _NS_ADD_CACHED if dim <= 2 or n <= 10**5 else _NS_ADD_SPILLED
+            # (up to 3e5 cells measured for K = 1 only; with K > 1 direct sums were 7-10x
+            # slower than the FFT at 48^3 and 64^3)
+            cached = dim <= 2 or n <= 10**5 or (n <= 3 * 10**5 and self.n_species == 1)
+            per_add = _NS_ADD_CACHED if cached else _NS_ADD_SPILLED
             costs = {"direct": per_add * adds,
                      "fft": _NS_FFT * math.log2(max(n, 2)) * self.n_species * (1.0 if combined else 1.5)}
             # matrix products only pay on CPU, and only for one species (K > 1 measured
