@@ -46,6 +46,9 @@ CASES = [
     ((13, 13, 14), [DUR], "disc", False),
     ((11, 12, 11), [(1.0, 3.0, 1.0, -0.2), (2.0, 4.0, 1.0, -0.1)], "box", False),
     ((12, 11, 13), [(1.5, 3.3, 1.0, -0.25), (2.2, 4.1, 1.0, -0.3), (1.0, 2.0, 1.0, -0.4)], "disc", True),
+    # a last axis longer than one vector and not a multiple of it (the direct sums round it
+    # up, then cut), and a 2D disc of over 255 cells (byte partial sums widened)
+    ((19, 45), [YOUNG, (3.0, 9.5, 1.0, -0.1)], "disc", False),
 ]
 
 
