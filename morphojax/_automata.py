@@ -381,13 +381,14 @@ def _ball_sums(ind: Array, thresholds, extent: int, neighbourhood: str, dtype=jn
     down to runs along the last axis, built incrementally; sub-results are shared between
     thresholds, so a disc costs about (number of distinct cross-sections) x (width) adds.
     Partial sums are kept in bytes while their largest value (the number of offsets they
-    cover) fits, and the last axis is computed over whole vectors (rounded up, then cut):
-    XLA:CPU finishes a row's remainder one element at a time, which made a 30^3 lattice
-    cost more than 32^3.
+    cover) fits, and the last axis is computed over whole vectors: the results' last axis
+    is rounded up to a multiple of the vector (the extra entries repeat the lattice
+    periodically; cut them off after use). XLA:CPU finishes a row's remainder one element
+    at a time, which made a 30^3 lattice cost twice 32^3.
     """
     d, shape = ind.ndim, ind.shape
-    lane = _LANE_BYTES // jnp.dtype(_NARROW).itemsize
-    width = -(-shape[-1] // lane) * lane if shape[-1] > lane else shape[-1]
+    lane = max(1, _LANE_BYTES // jnp.dtype(_NARROW).itemsize)
+    width = -(-shape[-1] // lane) * lane
     pads = [(extent, extent)] * (d - 1) + [(extent, extent + width - shape[-1])]
     xp = jnp.pad(ind.astype(_NARROW), pads, mode="wrap")
     memo: dict = {}
@@ -419,7 +420,7 @@ def _ball_sums(ind: Array, thresholds, extent: int, neighbourhood: str, dtype=jn
                 memo[(axis, res)] = total
         return memo[(axis, res)]
 
-    return {t: ball(0, t)[0][..., : shape[-1]].astype(dtype) for t in thresholds}
+    return {t: ball(0, t)[0].astype(dtype) for t in thresholds}
 
 
 def _direct_adds(thresholds, dim: int, neighbourhood: str) -> int:
@@ -447,6 +448,7 @@ class _YoungPlan(NamedTuple):
     thresholds: tuple | None  # direct: ((T_act, T_inh), ...) per species
     count_dtype: str
     extent: int = 0  # matmul: the kernels' half-width along the first axis
+    keys: bool = False  # K > 1: the update picks the largest packed key W_j (K + 1) + K - j (int32)
 
 
 # ---- the automaton -----------------------------------------------------------------------
@@ -656,7 +658,7 @@ class YoungCA(AbstractAutomaton):
         counts = self.neighbour_counts(dim)
         ball = max(_ball_size(t, dim, self.neighbourhood) for _, t in thresholds)
         count_dtype = "int16" if ball < 2**15 else "int32"
-        combined = False
+        combined = keys = False
         if is_concrete(self.w_act, self.w_inh, self.denominator):
             a, b = (np.abs(x) for x in self._host_integer_weights())
             bound = int(np.max(a * counts[:, 0] + b * counts[:, 1]))
@@ -666,6 +668,7 @@ class YoungCA(AbstractAutomaton):
                     "32-bit integers; use weights with fewer decimals or smaller radii"
                 )
             combined = bound * _FFT_ERROR_SCALE * max(1.0, math.log2(n)) < 0.1
+            keys = self.n_species > 1 and bound * (self.n_species + 1) + self.n_species <= _INT32_MAX
             # matrix-product transforms: float32 sums as long as the transformed sides
             # (worst-case error growth; measured errors are ~1e-4, 400x below at 64^3)
             exact_matmul = bound * _FFT_ERROR_SCALE * max(1, sum(shape[1:])) < 0.1
@@ -691,7 +694,7 @@ class YoungCA(AbstractAutomaton):
                 costs["matmul"] = _matmul_cost(shape, extent)
             method = min(costs, key=costs.get)
         return _YoungPlan(method, combined or method == "matmul", thresholds if method == "direct" else None,
-                          count_dtype, extent if method == "matmul" else 0)
+                          count_dtype, extent if method == "matmul" else 0, keys)
 
     # ---- counting -----------------------------------------------------------------------
     def _kernels(self, shape, edge=None):
@@ -720,16 +723,19 @@ class YoungCA(AbstractAutomaton):
         if plan.method == "direct":
             dtype = jnp.dtype(plan.count_dtype)
             extent = max(_half_width(t, self.neighbourhood) for _, t in plan.thresholds)
-            out = []
+            out, n = [], cells.shape[-1]
             for j, (t_act, t_inh) in enumerate(plan.thresholds):
                 ind = cells == j
                 sums = _ball_sums(ind, sorted({t_act, t_inh}), extent, self.neighbourhood, dtype)
                 n_act = sums[t_act].astype(jnp.int32)
                 n_ring = sums[t_inh].astype(jnp.int32) - n_act
                 if not self.include_self:
-                    n_act = n_act - ind.astype(jnp.int32)
+                    pad = [(0, 0)] * (ind.ndim - 1) + [(0, n_act.shape[-1] - n)]
+                    n_act = n_act - jnp.pad(ind, pad).astype(jnp.int32)
                 out.append(a[j] * n_act + b[j] * n_ring)
-            return jnp.stack(out)
+            # cut to the lattice only now: over rows of 30 the update, into which XLA:CPU
+            # fuses the sums, ran element by element (5x its time over rows of 32)
+            return jnp.stack([w[..., :n] for w in out])
         ind = jnp.stack([(cells == j) for j in range(k)]).astype(jnp.float32)
         if plan.combined:
             return jnp.round(_convolve(ind, spectra, plan)).astype(jnp.int32)
@@ -780,16 +786,22 @@ class YoungCA(AbstractAutomaton):
 
         def step(cells):
             w = self._fields(cells, plan, spectra)
-            # The first maximum wins a tie between species (as argmax), written elementwise:
-            # XLA:CPU's argmax reduction over the stacked fields cost ~8x the whole step
-            # (K = 3 at 250^2). The direct sums are materialised before the decision: fused
-            # into it, they were recomputed for each use of the fields (1.5-2x the step).
-            if plan.method == "direct":
-                w = jax.lax.optimization_barrier(w)
-            best, winner = w[0], jnp.zeros((), cells.dtype)
-            for j in range(1, k):
-                winner = jnp.where(w[j] > best, jnp.asarray(j, cells.dtype), winner)
-                best = jnp.maximum(best, w[j])
+            if plan.keys:
+                # one packed key per species, W_j (K + 1) + K - j, and their maximum: the
+                # largest field, the lowest species on a tie (as argmax). Made from the
+                # stacked fields, XLA:CPU computes the direct sums once, in the stacking op;
+                # argmax, or a best/winner chain over the species' fields, took 6-8x the
+                # step (K = 3 at 250^2: the sums fused into the update, once per use)
+                tags = (k - jnp.arange(k, dtype=w.dtype)).reshape((k,) + (1,) * cells.ndim)
+                keys = w * (k + 1) + tags
+                key = functools.reduce(jnp.maximum, [keys[j] for j in range(k)])
+                best = jnp.floor_divide(key, k + 1)
+                winner = (k - (key - best * (k + 1))).astype(cells.dtype)
+            else:
+                best, winner = w[0], jnp.zeros((), cells.dtype)
+                for j in range(1, k):
+                    winner = jnp.where(w[j] > best, jnp.asarray(j, cells.dtype), winner)
+                    best = jnp.maximum(best, w[j])
             undiff = jnp.asarray(k, cells.dtype)
             return jnp.where(best > 0, winner, jnp.where(best < 0, undiff, cells))
 

@@ -69,6 +69,22 @@ def test_step_matches_oracle_exactly(case, method):
         np.testing.assert_array_equal(got, oracle.young_step(cells, species, neighbourhood, include_self))
 
 
+@pytest.mark.parametrize("keys", [True, False])
+def test_species_ties_go_to_the_lowest_index(keys):
+    """Two identical species tie wherever both fields are equal; the first wins (as the
+    oracle's argmax), both through the packed keys W_j (K + 1) + K - j and through the
+    best/winner chain used when those keys would overflow int32."""
+    species, shape = [YOUNG, YOUNG], (20, 21)
+    ca = YoungCA(species, method="direct")
+    plan = ca._plan(shape)
+    assert plan.keys
+    step = jax.jit(ca._stepper(plan._replace(keys=keys), shape))
+    cells = _state(shape, 2, 5)
+    w = np.asarray(ca.fields(cells))
+    assert np.sum((w[0] == w[1]) & (w[0] > 0)) > 10  # the case under test occurs
+    np.testing.assert_array_equal(np.asarray(step(cells)), oracle.young_step(cells, species))
+
+
 def test_fft_separate_counts_path_matches_oracle():
     """Weights with four decimals make the weighted kernel too large for one float32
     transform; the activator and ring counts are then transformed separately."""
