@@ -146,11 +146,16 @@ def bench_case(name, species, shape, steps, stop, p, repeats, oracle_steps, nump
 def compare_methods(repeats):
     """ms per step of each counting method, interleaved, and what `auto` picks."""
     cases = [((n,) * 3, [(3.2, 6.0, 1.0, -0.2)]) for n in (16, 20, 24, 30, 32, 36, 40, 48, 64)]
-    cases += [((30,) * 3, [(3.2, 6.0, 1.0, -0.2)] * 2), ((25, 40, 30), [(3.2, 6.0, 1.0, -0.2)])]
-    cases += [((n, n), [(2.30, 6.01, 1.0, -0.2)]) for n in (64, 128, 250, 256)]
+    cases += [((n,) * 3, [(3.2, 6.0, 1.0, -0.2)] * 2) for n in (30, 48, 64, 100)]
+    cases += [((25, 40, 30), [(3.2, 6.0, 1.0, -0.2)])]
+    cases += [((n, n), [(2.30, 6.01, 1.0, -0.2)]) for n in (64, 128, 250, 256, 1024)]
+    cases += [((250, 250), [(2.30, 6.01, 1.0, -0.2), (2.0, 5.0, 1.0, -0.25), (1.5, 4.0, 1.0, -0.3)])]
+    # larger inhibitor radii: where XLA:CPU stops vectorising the direct sums' last fusion
+    cases += [((256, 256), [(2.30, r, 1.0, -0.02)]) for r in (12.0, 15.0)]
+    cases += [((48,) * 3, [(3.2, r, 1.0, -0.05)]) for r in (7.5, 8.0)]
     methods = ("direct", "fft", "matmul")
-    print("| lattice | K | " + " | ".join(methods) + " | auto picks | fastest |")
-    print("|---|---|" + "---|" * (len(methods) + 2))
+    print("| lattice | K | r_inh | " + " | ".join(methods) + " | auto picks | fastest |")
+    print("|---|---|---|" + "---|" * (len(methods) + 2))
     for shape, species in cases:
         steps = max(5, min(100, int(3e6 / np.prod(shape))))
         cells = random_cells(jax.random.key(0), shape, len(species), None if len(shape) == 3 else 0.015)
@@ -168,9 +173,10 @@ def compare_methods(repeats):
                 t0 = time.perf_counter()
                 _run_jax(ca, cells, steps, False)
                 times[m].append((time.perf_counter() - t0) / steps)
-        med = {m: statistics.median(t) for m, t in times.items() if t}
+        med = {m: statistics.median(t) for m, t in times.items()}
         auto = YoungCA(species)._plan(shape).method
-        print(f"| {'x'.join(map(str, shape))} | {len(species)} | "
+        r_inh = f"{species[0][1]:g}" if len(set(species)) == 1 else "mixed"
+        print(f"| {'x'.join(map(str, shape))} | {len(species)} | {r_inh} | "
               + " | ".join(f"{med[m] * 1e3:.3f} ms" if m in med else "n/a" for m in methods)
               + f" | {auto} | {min(med, key=med.get)} |")
 

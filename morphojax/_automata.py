@@ -64,12 +64,21 @@ _INT32_MAX = 2**31 - 1
 # species) while the sum of their magnitudes keeps the rounding error far below 1/2;
 # otherwise the activator and ring counts are transformed separately (each exact).
 _FFT_ERROR_SCALE = 4.0 * float(np.finfo(np.float32).eps)
-# cost model of `method="auto"`, per lattice cell and step, measured on a 2-core x86 CPU
-# (AVX2; benchmarks/bench_automata.py --methods): an FFT pair ~0.45 ns x log2 N; a
-# multiply-add of the matrix-product transforms ~0.05 ns (one core near its peak); an
-# add of shifted int16 slices ~0.07 ns while they stay in cache (2D, or 3D up to 1e5
-# cells, 3e5 = 64^3 for K = 1), ~1.5 ns once 3D intermediates spill to memory
-_NS_FFT, _NS_MAC, _NS_ADD_CACHED, _NS_ADD_SPILLED = 0.45, 0.05, 0.07, 1.5
+# Cost model of `method="auto"`, microseconds a step for N cells, fitted on a 2-core x86
+# CPU (AVX2, XLA:CPU; benchmarks/bench_automata.py --methods, results/bench_automata.md):
+# - direct: 10 us + N x adds x max(0.035, 0.1 (4096 / N)^(1/3)) ns (byte adds over whole
+#   vectors; the cost of an add falls with N as XLA:CPU splits larger loops over both
+#   cores), x13 once a species' last fused sum (its adds beyond the runs along the last
+#   axis) exceeds 30 adds in 2D or 130 in 3D and more: XLA:CPU then emits that fusion as
+#   scalar code (measured from r_inh = 15 in 2D, 8 in 3D; the lattice's width rounding
+#   measured as no extra cost);
+# - fft: 25 us + 0.4 ns x N log2 N per transform pair (1.5 pairs a species when the
+#   activator and ring counts are transformed separately);
+# - matmul (K = 1, CPU only): 5 us + N x max(6.5, 0.013 x multiply-adds per cell) ns.
+_US_DIRECT, _NS_ADD, _NS_ADD_SMALL, _SCALAR_PENALTY = 10.0, 0.035, 0.1, 13.0
+_FUSED_ADDS_2D, _FUSED_ADDS = 30, 130  # (1D: nothing is fused beyond the runs)
+_US_FFT, _NS_FFT = 25.0, 0.4
+_US_MATMUL, _NS_MATMUL, _NS_MAC = 5.0, 6.5, 0.013
 
 
 # ---- small public helpers ----------------------------------------------------------------
@@ -173,8 +182,9 @@ class AutomatonRun(eqx.Module):
 
 class _Codec(NamedTuple):
     """How a stepper carries the lattice through the loop: `encode` maps integer cells
-    to the carried form (a bijection, so changed cells can be counted on it) and
-    `decode` maps it back to cells of `dtype`."""
+    to the carried form (which may be wider than the lattice) and `decode` maps it back
+    to the cells, of `dtype` (decode(encode(c)) == c; changed cells are counted on the
+    decoded lattice)."""
 
     encode: Callable
     decode: Callable
@@ -190,7 +200,7 @@ def _iterate(step_fn: Callable, cells, steps: int, stop: bool, threshold, save_e
     `lax.while_loop` that stops at convergence when `stop`. `step_fn` works on the
     carried form of `codec` (default: the integer cells themselves)."""
     codec = _identity_codec(cells.dtype) if codec is None else codec
-    dtype, cells = cells.dtype, codec.encode(cells)
+    dtype, shape, cells = cells.dtype, cells.shape, codec.encode(cells)
     # "last": the changed fraction of the latest update. A plain run counts it in its final
     # update only (the first steps - 1 run in a lean scan: no count, no copy of the lattice)
     carry = {"i": jnp.int32(0), "cells": cells, "last": jnp.float32(1.0)}
@@ -198,7 +208,7 @@ def _iterate(step_fn: Callable, cells, steps: int, stop: bool, threshold, save_e
         carry["changes"] = jnp.full((steps,), jnp.nan, jnp.float32)
     if save_every:
         n_frames = steps // save_every + 1
-        carry["frames"] = jnp.zeros((n_frames,) + cells.shape, dtype).at[0].set(codec.decode(cells))
+        carry["frames"] = jnp.zeros((n_frames,) + shape, dtype).at[0].set(codec.decode(cells))
         carry["frame_steps"] = jnp.full((n_frames,), -1, jnp.int32).at[0].set(0)
 
     def body(carry, count=True):
@@ -206,7 +216,7 @@ def _iterate(step_fn: Callable, cells, steps: int, stop: bool, threshold, save_e
         i, c = carry["i"], carry["cells"]
         new = step_fn(c)
         if count:
-            carry["last"] = frac = jnp.mean(new != c).astype(jnp.float32)
+            carry["last"] = frac = jnp.mean(codec.decode(new) != codec.decode(c)).astype(jnp.float32)
             if history:
                 carry["changes"] = carry["changes"].at[i].set(frac)
         i = i + 1
@@ -237,7 +247,7 @@ class AbstractAutomaton(eqx.Module):
     inside the compiled function once per run, so precomputation such as kernel spectra
     happens once, and returning the one-step function; given `_precomputed(plan, shape)`
     it uses those arrays instead). The step works on the form of the lattice that
-    `_codec(plan, dtype)` gives (by default the integer cells).
+    `_codec(plan, shape, dtype)` gives (by default the integer cells).
     """
 
     @property
@@ -253,7 +263,7 @@ class AbstractAutomaton(eqx.Module):
     def _stepper(self, plan, shape: tuple[int, ...], pre=None) -> Callable[[Array], Array]:
         ...
 
-    def _codec(self, plan, dtype) -> _Codec:
+    def _codec(self, plan, shape, dtype) -> _Codec:
         return _identity_codec(dtype)
 
     def _precomputed(self, plan, shape):
@@ -309,14 +319,14 @@ class AbstractAutomaton(eqx.Module):
 # treedef): ~0.2 ms a call against ~1 ms through filter_jit, 5% of 100 steps at L = 30
 @functools.partial(jax.jit, static_argnames=("plan",))
 def _jit_step(automaton, cells, pre, *, plan):
-    codec = automaton._codec(plan, cells.dtype)
+    codec = automaton._codec(plan, cells.shape, cells.dtype)
     return codec.decode(automaton._stepper(plan, cells.shape, pre)(codec.encode(cells)))
 
 
 @functools.partial(jax.jit, static_argnames=("steps", "plan", "stop", "save_every", "history"))
 def _jit_run(automaton, cells, pre, threshold, *, steps, plan, stop, save_every, history):
     return _iterate(automaton._stepper(plan, cells.shape, pre), cells, steps, stop, threshold, save_every, history,
-                    automaton._codec(plan, cells.dtype))
+                    automaton._codec(plan, cells.shape, cells.dtype))
 
 
 # ---- exact weights -----------------------------------------------------------------------
@@ -373,6 +383,18 @@ _LANE_BYTES = 32  # one AVX2 vector: the last axis of the direct sums is compute
 _NARROW = jnp.uint8  # partial sums stay in bytes while their bound allows (4x the lanes of int32)
 
 
+def _vector_width(n: int) -> int:
+    """`n` rounded up to whole vectors of byte sums (the direct method's carried width)."""
+    lane = max(1, _LANE_BYTES // jnp.dtype(_NARROW).itemsize)
+    return -(-n // lane) * lane
+
+
+def _widen(cells: Array, width: int) -> Array:
+    """`cells` with its last axis extended periodically to `width`."""
+    pad = width - cells.shape[-1]
+    return jnp.pad(cells, [(0, 0)] * (cells.ndim - 1) + [(0, pad)], mode="wrap") if pad else cells
+
+
 def _ball_sums(ind: Array, thresholds, extent: int, neighbourhood: str, dtype=jnp.int32) -> dict:
     """Exact neighbour counts of `ind` (0/1) over balls {o : dist(o) <= T} for each threshold
     T, by sums of shifted slices of a periodically padded copy; results in `dtype`.
@@ -382,13 +404,12 @@ def _ball_sums(ind: Array, thresholds, extent: int, neighbourhood: str, dtype=jn
     thresholds, so a disc costs about (number of distinct cross-sections) x (width) adds.
     Partial sums are kept in bytes while their largest value (the number of offsets they
     cover) fits, and the last axis is computed over whole vectors: the results' last axis
-    is rounded up to a multiple of the vector (the extra entries repeat the lattice
-    periodically; cut them off after use). XLA:CPU finishes a row's remainder one element
-    at a time, which made a 30^3 lattice cost twice 32^3.
+    is `_vector_width` of the lattice's (the extra entries repeat the lattice
+    periodically). XLA:CPU finishes a row's remainder one element at a time, which made a
+    30^3 lattice cost twice 32^3.
     """
     d, shape = ind.ndim, ind.shape
-    lane = max(1, _LANE_BYTES // jnp.dtype(_NARROW).itemsize)
-    width = -(-shape[-1] // lane) * lane
+    width = _vector_width(shape[-1])
     pads = [(extent, extent)] * (d - 1) + [(extent, extent + width - shape[-1])]
     xp = jnp.pad(ind.astype(_NARROW), pads, mode="wrap")
     memo: dict = {}
@@ -449,6 +470,7 @@ class _YoungPlan(NamedTuple):
     count_dtype: str
     extent: int = 0  # matmul: the kernels' half-width along the first axis
     keys: bool = False  # K > 1: the update picks the largest packed key W_j (K + 1) + K - j (int32)
+    width: int = 0  # direct: the carried lattice's last axis, widened periodically to whole vectors
 
 
 # ---- the automaton -----------------------------------------------------------------------
@@ -681,20 +703,29 @@ class YoungCA(AbstractAutomaton):
                 "counts) stay small enough for exact float32 transforms; use 'fft' or 'direct'"
             )
         if method == "auto":
-            adds = sum(_direct_adds(t, dim, self.neighbourhood) for t in thresholds)
-            # (up to 3e5 cells measured for K = 1 only; with K > 1 direct sums were 7-10x
-            # slower than the FFT at 48^3 and 64^3)
-            cached = dim <= 2 or n <= 10**5 or (n <= 3 * 10**5 and self.n_species == 1)
-            per_add = _NS_ADD_CACHED if cached else _NS_ADD_SPILLED
-            costs = {"direct": per_add * adds,
-                     "fft": _NS_FFT * math.log2(max(n, 2)) * self.n_species * (1.0 if combined else 1.5)}
+            costs = {"direct": self._direct_cost(shape, thresholds),
+                     "fft": _US_FFT + 1e-3 * _NS_FFT * n * math.log2(max(n, 2)) * self.n_species * (
+                         1.0 if combined else 1.5)}
             # matrix products only pay on CPU, and only for one species (K > 1 measured
-            # slower than the FFT's batched transforms at every size)
+            # slower than the FFT's batched transforms at most sizes)
             if exact_matmul and dim >= 2 and self.n_species == 1 and jax.default_backend() == "cpu":
                 costs["matmul"] = _matmul_cost(shape, extent)
             method = min(costs, key=costs.get)
-        return _YoungPlan(method, combined or method == "matmul", thresholds if method == "direct" else None,
-                          count_dtype, extent if method == "matmul" else 0, keys)
+        direct = method == "direct"
+        return _YoungPlan(method, combined or method == "matmul", thresholds if direct else None, count_dtype,
+                          extent if method == "matmul" else 0, keys, _vector_width(shape[-1]) if direct else 0)
+
+    def _direct_cost(self, shape, thresholds) -> float:
+        """Estimated microseconds a step of `_ball_sums` for every species (cost model)."""
+        dim, n = len(shape), int(np.prod(shape))
+        per_add = max(_NS_ADD, _NS_ADD_SMALL * (4096 / n) ** (1 / 3))
+        total = _US_DIRECT
+        for t in thresholds:
+            adds = _direct_adds(t, dim, self.neighbourhood)
+            fused = adds - 2 * max(_half_width(x, self.neighbourhood) for x in t)
+            scalar = fused > (_FUSED_ADDS_2D if dim == 2 else _FUSED_ADDS)
+            total += 1e-3 * n * adds * per_add * (_SCALAR_PENALTY if scalar else 1.0)
+        return total
 
     # ---- counting -----------------------------------------------------------------------
     def _kernels(self, shape, edge=None):
@@ -716,26 +747,27 @@ class YoungCA(AbstractAutomaton):
         act = in_act if self.include_self else jnp.where(centre, 0.0, in_act)
         return act, ring
 
-    def _fields(self, cells, plan: _YoungPlan, spectra) -> Array:
-        """Exact integer fields W_j x denominator, shape (K, *lattice)."""
+    def _fields(self, cells, plan: _YoungPlan, spectra, n: int) -> Array:
+        """Exact integer fields W_j x denominator, shape (K, *carried lattice), from the
+        carried form of the cells (`_codec`); `n` is the lattice's last side."""
         k = self.n_species
         a, b = self._integer_weights()
         if plan.method == "direct":
+            # the carried lattice is widened periodically to whole vectors along its last
+            # axis, and so are the sums and the update: over rows of 30 XLA:CPU ran the
+            # update, into which it fuses the last sums, element by element (0.24 against
+            # 0.13 ms a step at 30^3, K = 1)
             dtype = jnp.dtype(plan.count_dtype)
             extent = max(_half_width(t, self.neighbourhood) for _, t in plan.thresholds)
-            out, n = [], cells.shape[-1]
+            out = []
             for j, (t_act, t_inh) in enumerate(plan.thresholds):
-                ind = cells == j
-                sums = _ball_sums(ind, sorted({t_act, t_inh}), extent, self.neighbourhood, dtype)
+                sums = _ball_sums(cells[..., :n] == j, sorted({t_act, t_inh}), extent, self.neighbourhood, dtype)
                 n_act = sums[t_act].astype(jnp.int32)
                 n_ring = sums[t_inh].astype(jnp.int32) - n_act
                 if not self.include_self:
-                    pad = [(0, 0)] * (ind.ndim - 1) + [(0, n_act.shape[-1] - n)]
-                    n_act = n_act - jnp.pad(ind, pad).astype(jnp.int32)
+                    n_act = n_act - (cells == j).astype(jnp.int32)
                 out.append(a[j] * n_act + b[j] * n_ring)
-            # cut to the lattice only now: over rows of 30 the update, into which XLA:CPU
-            # fuses the sums, ran element by element (5x its time over rows of 32)
-            return jnp.stack([w[..., :n] for w in out])
+            return jnp.stack(out)
         ind = jnp.stack([(cells == j) for j in range(k)]).astype(jnp.float32)
         if plan.combined:
             return jnp.round(_convolve(ind, spectra, plan)).astype(jnp.int32)
@@ -766,7 +798,9 @@ class YoungCA(AbstractAutomaton):
         species 0 straight into the transform (no conversions; ~10% of the step)."""
         return plan.method in ("fft", "matmul") and plan.combined and self.n_species == 1
 
-    def _codec(self, plan, dtype) -> _Codec:
+    def _codec(self, plan, shape, dtype) -> _Codec:
+        if plan.width > shape[-1]:  # direct counting: the lattice widened periodically
+            return _Codec(lambda c: _widen(c, plan.width), lambda c: c[..., :shape[-1]].astype(dtype))
         if not self._binary(plan):
             return _identity_codec(dtype)
         return _Codec(lambda c: (c == 0).astype(jnp.float32),
@@ -785,7 +819,7 @@ class YoungCA(AbstractAutomaton):
             return binary_step
 
         def step(cells):
-            w = self._fields(cells, plan, spectra)
+            w = self._fields(cells, plan, spectra, shape[-1])
             if plan.keys:
                 # one packed key per species, W_j (K + 1) + K - j, and their maximum: the
                 # largest field, the lowest species on a tie (as argmax). Made from the
@@ -880,7 +914,9 @@ def _cached_plan(key, ca) -> _YoungPlan:
 
 @functools.partial(jax.jit, static_argnames=("plan",))
 def _jit_fields(ca, cells, pre, *, plan):
-    return ca._fields(cells, plan, ca._spectra(plan, cells.shape) if pre is None else pre)
+    n = cells.shape[-1]
+    wide = _widen(cells, max(plan.width, n))
+    return ca._fields(wide, plan, ca._spectra(plan, cells.shape) if pre is None else pre, n)[..., :n]
 
 
 @functools.partial(jax.jit, static_argnames=("plan", "shape"))
@@ -906,8 +942,9 @@ def _cas_matrix(n: int) -> np.ndarray:
 
 
 def _matmul_cost(shape, extent: int) -> float:
-    """Estimated ns per cell and step of one species' `_convolve` by matrix products."""
-    return _NS_MAC * (2 * sum(shape[1:]) + 2 * extent + 1)
+    """Estimated microseconds a step of one species' `_convolve` by matrix products."""
+    n = int(np.prod(shape))
+    return _US_MATMUL + 1e-3 * n * max(_NS_MATMUL, _NS_MAC * (2 * sum(shape[1:]) + 2 * extent + 1))
 
 
 def _cas_transform(y: Array, mats: dict) -> Array:
