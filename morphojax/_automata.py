@@ -29,9 +29,11 @@ Units and conventions:
   as 3 x 1 + 15 x (-0.2) = 0 is an exact zero and keeps the state.
 
 Neighbour counts are exact integers, computed by sums of shifted slices of a
-periodically padded copy (`method="direct"`, fast for small radii and in 2D), by FFT
-convolution with kernel spectra computed once per run (`method="fft"`, fast for large
-3D neighbourhoods), or by real separable Fourier transforms as matrix products on every
+periodically padded copy (`method="direct"`, fastest for Young's radii in 2D and in 3D
+from 30^3: byte sums over whole vectors, the lattice carried widened periodically to a
+multiple of 32 cells along its last axis), by FFT convolution with kernel spectra computed
+once per run (`method="fft"`, fastest for large radii, and the only method for traced
+radii), or by real separable Fourier transforms as matrix products on every
 axis but the first, with the kernel's few offsets along the first axis summed directly
 (`method="matmul"`, fast for small 3D lattices on CPU, where matrix products run near the
 core's peak and the FFT does not); the last two are rounded to integers. `method="auto"`

@@ -109,6 +109,19 @@ def test_matmul_refuses_fields_too_large_for_exact_float32():
         assert YoungCA([DUR])._plan((16, 16, 16)).method == "matmul"
 
 
+@pytest.mark.parametrize("shape, species, expected", [
+    ((30, 30, 30), [DUR], "direct"),  # the paper 002 Table 1 case
+    ((100, 100, 100), [DUR, DUR], "direct"),
+    ((256, 256), [(2.3, 12.0, 1.0, -0.02)], "direct"),
+    # larger radii: XLA:CPU emits the direct sums' last fusion as scalar code (measured
+    # 5-20x slower; benchmarks/results/bench_automata.md), so the FFT is cheaper
+    ((256, 256), [(2.3, 15.0, 1.0, -0.02)], "fft"),
+    ((48, 48, 48), [(3.2, 8.0, 1.0, -0.05)], "fft"),
+])
+def test_auto_follows_the_measured_crossovers(shape, species, expected):
+    assert YoungCA(species)._plan(shape).method == expected
+
+
 def _tie_lattice(target_state):
     """A 15 x 15 lattice whose centre has 3 species-0 cells in its activator disc
     (radius 1.5: the 8 Moore neighbours) and 15 in its ring (1.5 < d <= 3: 20 cells)."""
