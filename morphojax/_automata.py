@@ -405,12 +405,11 @@ def _ball_sums(ind: Array, thresholds, extent: int, neighbourhood: str, dtype=jn
     down to runs along the first axis (shifted slices there are contiguous blocks: ~10%
     faster than runs along the rows at 30^3), built incrementally; sub-results are shared
     between thresholds, so a disc costs about (number of distinct cross-sections) x
-    (width) adds.
-    Partial sums are kept in bytes while their largest value (the number of offsets they
-    cover) fits, and the last axis is computed over whole vectors: the results' last axis
-    is `_vector_width` of the lattice's (the extra entries repeat the lattice
-    periodically). XLA:CPU finishes a row's remainder one element at a time, which made a
-    30^3 lattice cost twice 32^3.
+    (width) adds. Partial sums are kept in bytes while their largest value (the number of
+    offsets they cover) fits, and the last axis is computed over whole vectors: the
+    results' last axis is `_vector_width` of the lattice's (the extra entries repeat the
+    lattice periodically). XLA:CPU finishes a row's remainder one element at a time, which
+    made a 30^3 lattice cost twice 32^3.
     """
     d, shape = ind.ndim, ind.shape
     width = _vector_width(shape[-1])
@@ -709,9 +708,12 @@ class YoungCA(AbstractAutomaton):
                 "counts) stay small enough for exact float32 transforms; use 'fft' or 'direct'"
             )
         if method == "auto":
-            costs = {"direct": self._direct_cost(shape, thresholds),
-                     "fft": _US_FFT + 1e-3 * _NS_FFT * n * math.log2(max(n, 2)) * self.n_species * (
-                         1.0 if combined else 1.5)}
+            costs = {"fft": _US_FFT + 1e-3 * _NS_FFT * n * math.log2(max(n, 2)) * self.n_species * (
+                1.0 if combined else 1.5)}
+            # the model is fitted on CPU; on GPUs 3D lattices keep the FFT, as measured on
+            # an H100 (benchmarks/results/bench_gpu.md), until direct sums are timed there
+            if dim <= 2 or jax.default_backend() == "cpu":
+                costs["direct"] = self._direct_cost(shape, thresholds)
             # matrix products only pay on CPU, and only for one species (K > 1 measured
             # slower than the FFT's batched transforms at most sizes)
             if exact_matmul and dim >= 2 and self.n_species == 1 and jax.default_backend() == "cpu":
