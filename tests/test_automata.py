@@ -47,8 +47,9 @@ CASES = [
     ((13, 13, 14), [DUR], "disc", False),
     ((11, 12, 11), [(1.0, 3.0, 1.0, -0.2), (2.0, 4.0, 1.0, -0.1)], "box", False),
     ((12, 11, 13), [(1.5, 3.3, 1.0, -0.25), (2.2, 4.1, 1.0, -0.3), (1.0, 2.0, 1.0, -0.4)], "disc", True),
-    # a last axis longer than one vector and not a multiple of it (the direct sums round it
-    # up, then cut), and a 2D disc of over 255 cells (byte partial sums widened)
+    # a last axis longer than one vector and not a multiple of it (the direct method carries
+    # it widened periodically to whole vectors), and a 2D disc of over 255 cells (byte
+    # partial sums widened)
     ((19, 45), [YOUNG, (3.0, 9.5, 1.0, -0.1)], "disc", False),
 ]
 
@@ -119,6 +120,8 @@ def test_matmul_refuses_fields_too_large_for_exact_float32():
     ((48, 48, 48), [(3.2, 8.0, 1.0, -0.05)], "fft"),
 ])
 def test_auto_follows_the_measured_crossovers(shape, species, expected):
+    if len(shape) == 3 and jax.default_backend() != "cpu":
+        expected = "fft"  # the CPU-fitted model keeps the FFT for 3D lattices on GPUs
     assert YoungCA(species)._plan(shape).method == expected
 
 
