@@ -71,3 +71,15 @@ def euler_barrier(rates, fields, dt, lower, upper, steps, k=2):
         d = rates(*fields)
         fields = [f + dt * (df + barrier_terms(f, lo, hi, k)) for f, df, lo, hi in zip(fields, d, lower, upper)]
     return fields
+
+
+def insert_rows(fields, rows):
+    """Random matrix expansion, its new row (leopard paper section 4): in every column j the
+    cell at row rows[j] is duplicated and the cells below it move down by one."""
+    return [np.stack([np.insert(f[:, j], rows[j], f[rows[j], j]) for j in range(f.shape[1])], axis=1)
+            for f in fields]
+
+
+def insert_cols(fields, cols):
+    """Its new column: in every row i the cell at column cols[i] is duplicated."""
+    return [np.stack([np.insert(f[i], cols[i], f[i, cols[i]]) for i in range(f.shape[0])]) for f in fields]

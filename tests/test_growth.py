@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import morphojax as mj
+import oracle
 from morphojax._growth import _insert
 
 FROZEN = mj.Bard(sp=0.0, da=0.0, db=0.0, lower=-np.inf)  # no reaction, no diffusion, no clamp
@@ -111,6 +112,39 @@ def test_unused_capacity_does_not_leak(boundary):
     for x, y in zip(a.arrays(), b.arrays()):
         np.testing.assert_allclose(x, y, rtol=1e-6, atol=1e-6)
     assert not np.asarray(b.fields)[:, 13:, :].any()
+
+
+@pytest.mark.parametrize(
+    "boundary, shape, capacity",
+    [("wrap", (9, 11), (20, 22)), ("no-flux", (150, 152), (167, 169))],
+    ids=["wrap-one-block", "no-flux-two-blocks"],
+)
+def test_growing_run_matches_the_numpy_oracle(boundary, shape, capacity):
+    """Reaction, diffusion and clamps on a growing lattice, step for step against the NumPy
+    oracle on arrays of the exact active size (no capacity, no ghost cells), dividing where
+    the simulator's draws say. The larger case runs on two blocks of the size ladder."""
+    state = mj.paper_state(jax.random.key(2), shape, capacity=capacity)
+    r, s, dt, lower = 12.0, 3.0, 0.008, (0.0, 3.0)
+    period, n = 12, capacity[0] - shape[0] - 1  # one row and column of room left over
+    growth, key = mj.Growth(1.0 / (period * dt)), jax.random.key(7)
+    assert growth.period_steps(dt) == period
+    got = mj.simulate(mj.Turing(r, s, lower=lower), state, steps=n * period, dt=dt, boundary=boundary,
+                      growth=growth, key=key)
+    fields = [np.asarray(f, float) for f in state.arrays()]
+    for step in range(n * period):
+        fields = oracle.euler(lambda a, b: oracle.turing_rates(a, b, r, s, boundary), fields, dt, lower,
+                              (np.inf, np.inf), 1)
+        if step % period == 0:  # an expansion ends the first step of every period
+            kr, kc = jax.random.split(jax.random.fold_in(jax.random.fold_in(key, step), 0))
+            h, w = fields[0].shape  # (draws of the capacity's length: one compiled draw)
+            fields = oracle.insert_rows(fields, np.asarray(growth.draw(kr, h, capacity[1], capacity[0]))[:w])
+            fields = oracle.insert_cols(fields, np.asarray(growth.draw(kc, w, capacity[0], capacity[1]))[: h + 1])
+    assert got.shape == fields[0].shape == (capacity[0] - 1, capacity[1] - 1)
+    for g, e in zip(got.arrays(), fields):
+        assert np.abs(g - e).max() < 1e-3
+    beyond = np.asarray(got.fields).copy()
+    beyond[:, : got.shape[0], : got.shape[1]] = 0.0
+    assert not beyond.any()
 
 
 N_DRAWS = 4000
