@@ -65,7 +65,7 @@ class FitResult:
 
     def to_json(self) -> dict:
         """Everything in the result as a JSON-ready dict (top-level 'params')."""
-        from morphojax._io import model_to_dict, to_jsonable
+        from morphojax._serialise import model_to_dict, to_jsonable
 
         model = model_to_dict(self.model) if isinstance(self.model, AbstractModel) else self.model.to_dict()
         return to_jsonable({
@@ -77,7 +77,7 @@ class FitResult:
 
     def save_json(self, path) -> Path:
         """Write `to_json()` to `path`; returns the path."""
-        from morphojax._io import dumps
+        from morphojax._serialise import dumps
 
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)

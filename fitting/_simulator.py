@@ -28,7 +28,6 @@ import numpy as np
 
 import morphojax as mj
 from morphojax._experiment import Experiment, Phase
-from morphojax._lattice import _SPECTRAL_RADIUS, normalise_stencil
 from morphojax._models import AbstractModel, Composite
 
 
@@ -136,9 +135,8 @@ class Simulator(eqx.Module):
         """dt for `model`: min(safety x the explicit-Euler limit of its largest diffusion, dt_cap), or the fixed dt."""
         if self.dt is not None:
             return jnp.asarray(self.dt)
-        rho = _SPECTRAL_RADIUS[normalise_stencil(self.stencil)]
-        dmax = jnp.max(model.diffusion())
-        return jnp.minimum(self.safety * 2.0 / (rho * dmax), self.dt_cap)
+        limit = mj.Lattice(self.stencil).max_stable_dt(jnp.max(model.diffusion()))  # traced: a JAX array
+        return jnp.minimum(self.safety * limit, self.dt_cap)
 
     def _species(self, names) -> int:
         if self.species is not None:
@@ -206,7 +204,7 @@ class Simulator(eqx.Module):
 
     def describe(self) -> dict:
         """JSON-ready description of the simulator (template, lattice, steps, window, time step)."""
-        from morphojax._io import model_to_dict, to_jsonable
+        from morphojax._serialise import model_to_dict, to_jsonable
 
         tmpl = model_to_dict(self.template) if isinstance(self.template, AbstractModel) else self.template.to_dict()
         return to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,

@@ -7,7 +7,8 @@
     a, b = state.arrays()
 """
 
-from ._lattice import BOUNDARIES, STENCILS, laplacian, max_stable_dt
+from ._lattice import BOUNDARIES, STENCILS
+from ._domain import AbstractDomain, Lattice, laplacian, max_stable_dt
 from ._models import (
     AbstractModel,
     Bard,
@@ -22,7 +23,7 @@ from ._initial import constant_state, gray_scott_state, initial_state, paper_sta
 from ._simulate import Barrier, SimulationError, rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
-from ._io import load_npz, save_npz
+from ._serialise import load_npz, save_npz
 from ._render import Gradient, montage, render, render_experiment, save_png, to_image
 from ._presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, relative_change
@@ -48,6 +49,7 @@ from ._version import __version__
 
 __all__ = [
     "AbstractAutomaton",
+    "AbstractDomain",
     "AbstractModel",
     "AutomatonRun",
     "Bard",
@@ -71,6 +73,7 @@ __all__ = [
     "Initial",
     "initial_state",
     "laplacian",
+    "Lattice",
     "LIFE_RULES",
     "LifeLike",
     "leopard_row_weights",

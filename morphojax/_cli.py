@@ -210,7 +210,7 @@ def _run_group(preset, args, out: Path):
 
 def _cmd_resume(args):
     from ._experiment import load_experiment
-    from ._io import load_npz
+    from ._serialise import load_npz
 
     state, meta = load_npz(args.checkpoint)
     exp = load_experiment(meta)
@@ -226,7 +226,7 @@ def _cmd_resume(args):
 
 def _cmd_render(args):
     from ._experiment import load_experiment
-    from ._io import load_npz
+    from ._serialise import load_npz
     from ._render import render_experiment, to_image
 
     state, meta = load_npz(args.result)

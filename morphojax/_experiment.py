@@ -24,8 +24,9 @@ import numpy as np
 
 from . import _initial
 from ._checks import check_count, check_range, is_concrete
-from ._io import (dumps, from_jsonable, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict,
-                  save_npz, to_jsonable)
+from ._serialise import (bounds_from_data, bounds_to_data, dumps, from_jsonable, growth_from_dict, growth_to_dict,
+                         key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict, save_npz,
+                         source_from_dict, source_to_dict, to_jsonable)
 from ._models import AbstractModel
 from ._simulate import Barrier, simulate
 from ._state import State
@@ -136,12 +137,9 @@ class Phase:
 
     def to_dict(self):
         """Plain-data (JSON-ready) form of the phase."""
-        from ._growth import growth_to_dict, source_to_dict
-
-        bounds = self.bounds if isinstance(self.bounds, str) else {"barrier": self.bounds.k}
         return to_jsonable({
             "name": self.name, "model": model_to_dict(self.model), "steps": self.steps, "dt": self.dt,
-            "boundary": self.boundary, "stencil": self.stencil, "bounds": bounds,
+            "boundary": self.boundary, "stencil": self.stencil, "bounds": bounds_to_data(self.bounds),
             "growth": growth_to_dict(self.growth) if self.growth is not None else None,
             "sources": [source_to_dict(s) for s in self.sources],
             "add_species": [list(p) for p in self.add_species],
@@ -151,12 +149,8 @@ class Phase:
 
     @classmethod
     def from_dict(cls, d):
-        from ._growth import growth_from_dict, source_from_dict
-
         d = from_jsonable(dict(d))
-        bounds = d.get("bounds", "clip")
-        if isinstance(bounds, dict):
-            bounds = Barrier(int(bounds["barrier"]))
+        bounds = bounds_from_data(d.get("bounds", "clip"))
         return cls(
             model=model_from_dict(d["model"]), steps=int(d["steps"]), dt=float(d["dt"]),
             boundary=d.get("boundary", "wrap"), stencil=d.get("stencil", "nine-point"), bounds=bounds,

@@ -408,28 +408,3 @@ class Source(eqx.Module):
             return jnp.where((r == at) & (c < size[1]), line, 0.0)
         line = jax.random.uniform(key, (rows, 1), dtype) * self.amplitude
         return jnp.where((c == size[1] // 2) & (r < size[0]), line, 0.0)
-
-
-def growth_to_dict(g: Growth) -> dict:
-    from ._io import to_jsonable
-
-    return to_jsonable({"rate": g.rate, "distribution": g.distribution, "row_weights": g.row_weights,
-                        "col_weights": g.col_weights, "spread": g.spread, "method": g.method})
-
-
-def growth_from_dict(d: dict) -> Growth:
-    return Growth(rate=d["rate"], distribution=d.get("distribution", "uniform"),
-                  row_weights=d.get("row_weights"), col_weights=d.get("col_weights"),
-                  spread=d.get("spread", 1.0 / 6.0), method=d.get("method", "division"))
-
-
-def source_to_dict(s: Source) -> dict:
-    from ._io import to_jsonable
-
-    return to_jsonable({"species": s.species, "amplitude": s.amplitude,
-                        "region": s.region if s.mask is None else s.mask})
-
-
-def source_from_dict(d: dict) -> Source:
-    region = d.get("region", "center-row")
-    return Source(d["species"], d["amplitude"], region if isinstance(region, str) else np.asarray(region))

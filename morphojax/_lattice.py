@@ -1,4 +1,4 @@
-"""The lattice: discrete Laplacians, boundaries (ghost cells) and the explicit-Euler limit.
+"""The square lattice's arithmetic: 3x3 stencils, ghost-cell boundaries, active regions.
 
 Fields have shape (..., rows, cols). A boundary is expressed by one ring of ghost cells
 around the active region:
@@ -25,7 +25,7 @@ STENCILS = ("nine-point", "five-point")
 
 # Largest |eigenvalue| of each stencil (at the checkerboard mode), in cells^-2:
 # nine-point [[1,4,1],[4,-20,4],[1,4,1]]/6 -> 16/3; five-point [[0,1,0],[1,-4,1],[0,1,0]] -> 8.
-_SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0}
+SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0}
 _STENCIL_ALIASES = {"9": "nine-point", "9-point": "nine-point", "nine": "nine-point",
                     "5": "five-point", "5-point": "five-point", "five": "five-point"}
 _BOUNDARY_ALIASES = {"periodic": "wrap", "toroidal": "wrap", "noflux": "no-flux", "neumann": "no-flux",
@@ -50,12 +50,6 @@ def stencil_weights(stencil: str = "nine-point"):
     if stencil == "nine-point":
         return [[1 / 6, 4 / 6, 1 / 6], [4 / 6, -20 / 6, 4 / 6], [1 / 6, 4 / 6, 1 / 6]]
     return [[0.0, 1.0, 0.0], [1.0, -4.0, 1.0], [0.0, 1.0, 0.0]]
-
-
-def max_stable_dt(max_diffusion: float, stencil: str = "nine-point") -> float:
-    """Largest dt for which explicit Euler on pure diffusion is stable: dt * D * rho <= 2."""
-    rho = _SPECTRAL_RADIUS[normalise_stencil(stencil)]
-    return float("inf") if max_diffusion <= 0 else 2.0 / (rho * max_diffusion)
 
 
 def pad(x, boundary: str):
@@ -111,11 +105,6 @@ def laplacian_padded(p, stencil: str = "nine-point"):
         return edges - 4.0 * c
     corners = p[..., :-2, :-2] + p[..., :-2, 2:] + p[..., 2:, :-2] + p[..., 2:, 2:]
     return (4.0 * edges + corners - 20.0 * c) * (1.0 / 6.0)
-
-
-def laplacian(x, boundary: str = "wrap", stencil: str = "nine-point"):
-    """Discrete Laplacian of `x` (..., rows, cols) with the given boundary and stencil."""
-    return laplacian_padded(pad(jnp.asarray(x), normalise_boundary(boundary)), normalise_stencil(stencil))
 
 
 def active_mask(shape, size):

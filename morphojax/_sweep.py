@@ -54,10 +54,13 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._checks import default_float
 from ._descriptors import SETTLE_TOL, describe, relative_change
-from ._growth import Growth, growth_from_dict, growth_to_dict, source_from_dict, source_to_dict
+from ._growth import Growth
 from ._initial import initial_state
-from ._io import dumps, key_from_data, key_to_data, model_from_dict, model_to_dict, read_npz, to_jsonable
-from ._lattice import max_stable_dt, normalise_boundary, normalise_stencil
+from ._serialise import (bounds_from_data, bounds_to_data, dumps, growth_from_dict, growth_to_dict, key_from_data,
+                         key_to_data, model_from_dict, model_to_dict, read_npz, source_from_dict, source_to_dict,
+                         to_jsonable)
+from ._domain import max_stable_dt
+from ._lattice import normalise_boundary, normalise_stencil
 from ._models import AbstractModel
 from ._simulate import run_status
 from ._state import State
@@ -547,7 +550,7 @@ def load_sweep(path) -> SweepResult:
                                 capacity=_capacity(config))  # the start `sweep` built itself (shape + shared key)
     return SweepResult(
         model=model_from_dict(config["model"]), names=names, axes=axes, values=values, initial=initial,
-        bounds=_bounds_from_json(config.get("bounds", "clip")),
+        bounds=bounds_from_data(config.get("bounds", "clip")),
         sources=tuple(source_from_dict(d) for d in config.get("sources") or ()),
         fields=stacked.reshape((n,) + stacked.shape[-3:]), size=extra["size"].reshape(n, 2),
         blowup_step=extra["blowup_step"].reshape(n), overflow=extra["overflow"].reshape(n),
@@ -650,7 +653,7 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
 
     config = {
         "model": model_to_dict(model), "steps": steps, "dt": to_jsonable(dt), "boundary": boundary,
-        "stencil": stencil, "bounds": _bounds_to_json(bounds),
+        "stencil": stencil, "bounds": bounds_to_data(bounds),
         "growth": growth_to_dict(growth) if growth is not None else None,
         "sources": [source_to_dict(s) for s in sources], "settle_steps": tail, "settle_tol": settle_tol,
         "keys": keys, "seed": seed, "key_data": key_to_data(key), "shape": list(probe.shape),
@@ -787,20 +790,6 @@ def _run_chunks(model, growth, sources, starts, member_keys, values, dt, devs, c
         host = (np.zeros((0,) + cap, dtype), np.zeros((0, 2), np.int32), np.zeros(0, np.int32), np.zeros(0, bool),
                 np.zeros(0, dtype), np.zeros(0, int))
     return host, (str(batch) if len(devs) > 1 else str(devs[0]))
-
-
-def _bounds_to_json(bounds):
-    from ._simulate import Barrier
-
-    if isinstance(bounds, Barrier):
-        return {"barrier": bounds.k}
-    return bounds
-
-
-def _bounds_from_json(data):
-    from ._simulate import Barrier
-
-    return Barrier(int(data["barrier"])) if isinstance(data, dict) else data
 
 
 def _validate_members(model, growth, dt, values, names, probe, steps, stencil, check_dt):

@@ -97,7 +97,8 @@ def _split(option: str, item: str):
 def build_sweep(args):
     """(model, vary, kwargs for `sweep`) from parsed arguments; bad input raises ValueError."""
     from ._growth import Growth
-    from ._lattice import max_stable_dt, normalise_stencil
+    from ._domain import max_stable_dt
+    from ._lattice import normalise_stencil
     from ._models import model_from_name
     from ._sweep import DT, GROWTH_RATE, _check_name, _check_values
 

@@ -1,4 +1,4 @@
-"""Plain-data conversion of models and states, and `.npz` result files.
+"""The one serialiser: every object to and from plain data (JSON), and the `.npz` files.
 
 Every result morphojax writes carries what is needed to reproduce or resume it: the
 species arrays (cropped to the active lattice) plus a JSON `metadata` entry with the
@@ -16,7 +16,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from ._bounds import Barrier
 from ._checks import is_concrete
+from ._growth import Growth, Source
 from ._models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
 from ._state import State
 
@@ -78,6 +80,37 @@ def model_from_dict(data: dict) -> AbstractModel:
             params[lim] = tuple(np.asarray(v, float) for v in params[lim])
     params = {k: (np.asarray(v, float) if isinstance(v, list) else v) for k, v in params.items()}
     return MODEL_TYPES[kind](**params)
+
+
+def growth_to_dict(g: Growth) -> dict:
+    return to_jsonable({"rate": g.rate, "distribution": g.distribution, "row_weights": g.row_weights,
+                        "col_weights": g.col_weights, "spread": g.spread, "method": g.method})
+
+
+def growth_from_dict(d: dict) -> Growth:
+    d = from_jsonable(dict(d))
+    return Growth(rate=d["rate"], distribution=d.get("distribution", "uniform"),
+                  row_weights=d.get("row_weights"), col_weights=d.get("col_weights"),
+                  spread=d.get("spread", 1.0 / 6.0), method=d.get("method", "division"))
+
+
+def source_to_dict(s: Source) -> dict:
+    return to_jsonable({"species": s.species, "amplitude": s.amplitude,
+                        "region": s.region if s.mask is None else s.mask})
+
+
+def source_from_dict(d: dict) -> Source:
+    region = d.get("region", "center-row")
+    return Source(d["species"], d["amplitude"], region if isinstance(region, str) else np.asarray(region))
+
+
+def bounds_to_data(bounds):
+    """"clip" or "barrier" as themselves, `Barrier(k)` as {"barrier": k}."""
+    return {"barrier": bounds.k} if isinstance(bounds, Barrier) else bounds
+
+
+def bounds_from_data(data):
+    return Barrier(int(data["barrier"])) if isinstance(data, dict) else data
 
 
 def key_to_data(key):
