@@ -10,6 +10,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
+from pathlib import Path
+
 import numpy as np
 from PIL import Image, ImageColor, ImageDraw, ImageFont
 
@@ -116,6 +118,12 @@ def to_image(x, cmap="inferno", vmin=None, vmax=None, scale: int = 1) -> Image.I
 def render(state, species=-1, cmap="inferno", vmin=None, vmax=None, scale: int = 1) -> Image.Image:
     """Render one species of a State (by name or index; default the last, B for Turing)."""
     return to_image(state.arrays()[state.index(species) if species != -1 else -1], cmap, vmin, vmax, scale)
+
+
+def png_path(path) -> Path:
+    """`path` as a Path ending in `.png` (any other suffix replaced): where a picture goes."""
+    path = Path(path)
+    return path if path.suffix.lower() == ".png" else path.with_suffix(".png")
 
 
 def save_png(path, image_or_array, **kwargs) -> None:
