@@ -23,7 +23,7 @@ from ._initial import constant_state, gray_scott_state, initial_state, paper_sta
 from ._simulate import Barrier, SimulationError, rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
-from ._serialise import load_npz, save_npz
+from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, montage, render, render_experiment, save_png, to_image
 from ._presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, relative_change
@@ -84,6 +84,8 @@ __all__ = [
     "max_stable_dt",
     "Member",
     "model_from_name",
+    "model_from_dict",
+    "model_to_dict",
     "montage",
     "one_hot_cells",
     "order_parameter",
@@ -116,6 +118,7 @@ __all__ = [
     "SweepResult",
     "thesis_state",
     "to_image",
+    "to_jsonable",
     "Turing",
     "volume_fractions",
     "weighted_volume_difference",
