@@ -33,7 +33,7 @@ def worker(n: int, batch: int, batch_size: int | None) -> dict:
     import numpy as np
 
     import morphojax as mj
-    from morphojax._sweep import sweep  # also mj.sweep once exported
+    from morphojax import sweep
 
     steps = max(10, int(WORK / (n * n)))
     ratios = np.linspace(4.0, 12.0, batch)

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import morphojax as mj
-from morphojax._render import montage, render_experiment
+from morphojax import montage, render_experiment
 
 HERE = Path(__file__).resolve().parent
 NAMES = ["whipray", "honeycomb-whipray", "frog", "squirrel", "leopard", "reinforcement-growth", "giraffe",

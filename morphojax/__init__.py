@@ -24,10 +24,12 @@ from ._simulate import Barrier, SimulationError, rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
-from ._render import Gradient, montage, render, render_experiment, save_png, to_image
+from ._render import Gradient, map_image, montage, render, render_experiment, save_png, to_image
 from ._presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, relative_change
-from ._sweep import Member, SweepResult, load_sweep, map_image, parameter_map, sweep
+from ._sweep import sweep
+from ._sweep_result import Member, SweepResult, load_sweep
+from ._parameter_map import parameter_map
 from ._automata import (
     YOUNG_P,
     AbstractAutomaton,

@@ -1,4 +1,4 @@
-"""Rendering: concentrations to colour images (PNG through pillow), montages.
+"""Rendering: concentrations to colour images (PNG through pillow), montages and labelled pictures.
 
 Colour maps are 256-entry lookup tables: the perceptually uniform `inferno` (the papers'
 choice, default) and `viridis`, `gray`, or a `Gradient` built from colour stops as in the
@@ -8,8 +8,8 @@ thesis's `colormap slot` commands, e.g. `Gradient([(0.0, "white"), (1.0, "#5b350
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
-
 from pathlib import Path
 
 import numpy as np
@@ -166,6 +166,85 @@ def montage(images: Sequence[Image.Image], ncols: int, *, row_labels=None, col_l
     for k, im in enumerate(images):
         i, j = divmod(k, ncols)
         canvas.paste(im, (left + pad + j * (w + pad), title_h + top + pad + i * (h + pad)))
+    return canvas
+
+
+def tile_montage(arrays, unstable, *, captions=None, row_labels=None, col_labels=None, title=None, cmap="inferno",
+                 scale: int | None = None, vmin=None, vmax=None) -> Image.Image:
+    """2D arrays (n, rows, cols) as one labelled picture, e.g. the members of a parameter grid.
+
+    With `captions` (one per array) the tiles are captioned and laid out on a near-square
+    grid; otherwise `col_labels` gives the number of columns and `row_labels` (optional)
+    the rows. Each tile is normalised on its own unless vmin/vmax are given; arrays marked
+    `unstable` or not finite are grey tiles marked "NaN". `scale` defaults to about 80
+    pixels per tile.
+    """
+    data = np.asarray(arrays)
+    if scale is None:
+        scale = max(1, 80 // max(data.shape[-2:]))
+    tiles = []
+    for i in range(len(data)):
+        x = data[i]
+        if unstable[i] or not np.isfinite(x).all():
+            tiles.append(_nan_tile(x.shape, scale))
+        else:
+            tiles.append(to_image(x, cmap=cmap, vmin=vmin, vmax=vmax, scale=scale))
+    if captions is not None:
+        ncols = max(1, math.ceil(math.sqrt(len(data))))
+        tiles = [_captioned(t, text) for t, text in zip(tiles, captions)]
+        return montage(tiles, ncols, title=title)
+    return montage(tiles, len(col_labels), row_labels=row_labels, col_labels=col_labels, title=title)
+
+
+def _nan_tile(shape, scale):
+    img = Image.new("RGB", (shape[1] * scale, shape[0] * scale), (128, 128, 128))
+    ImageDraw.Draw(img).text((2, 2), "NaN", fill="white")
+    return img
+
+
+def _captioned(img, text):
+    font = ImageFont.load_default()
+    box = ImageDraw.Draw(img).textbbox((0, 0), text, font=font)
+    w, h = max(img.width, box[2] - box[0] + 4), img.height + box[3] - box[1] + 6
+    canvas = Image.new("RGB", (w, h), "white")
+    ImageDraw.Draw(canvas).text((2, 1), text, fill="black", font=font)
+    canvas.paste(img, (0, h - img.height))
+    return canvas
+
+
+def map_image(array, x=None, y=None, cmap="inferno", scale: int = 2, title=None):
+    """A picture of a parameter-map run, with the x range under it and the y range on the left.
+
+    `x` and `y` are the `(name, start, stop)` given to `parameter_map`.
+    """
+    img = to_image(np.asarray(array), cmap=cmap, scale=scale)
+    font = ImageFont.load_default()
+    probe = ImageDraw.Draw(img)
+
+    def size(t):
+        b = probe.textbbox((0, 0), t, font=font)
+        return b[2] - b[0], b[3] - b[1]
+
+    ylo = f"{y[1]:g}" if y else ""
+    yhi = f"{y[2]:g}" if y else ""
+    left = max(size(ylo)[0], size(yhi)[0], size(y[0])[0] if y else 0) + 8
+    th = size("Ag")[1] + 6
+    top = th if title else 0
+    canvas = Image.new("RGB", (left + img.width + 4, top + img.height + 2 * th), "white")
+    canvas.paste(img, (left, top))
+    d = ImageDraw.Draw(canvas)
+    if title:
+        d.text((4, 2), title, fill="black", font=font)
+    if x:
+        d.text((left, top + img.height + 2), f"{x[1]:g}", fill="black", font=font)
+        d.text((left + img.width - size(f"{x[2]:g}")[0], top + img.height + 2), f"{x[2]:g}", fill="black", font=font)
+        d.text((left + (img.width - size(f"{x[0]} ->")[0]) // 2, top + img.height + th), f"{x[0]} ->", fill="black",
+               font=font)
+    if y:
+        d.text((2, top), ylo, fill="black", font=font)
+        d.text((2, top + img.height - size(yhi)[1] - 2), yhi, fill="black", font=font)
+        d.text((2, top + img.height // 2 - th // 2), f"{y[0]}", fill="black", font=font)
+        d.text((2, top + img.height // 2 + 2), "v", fill="black", font=font)
     return canvas
 
 

@@ -19,9 +19,12 @@ import numpy as np
 import pytest
 
 import morphojax as mj
-from morphojax import _sweep
+from morphojax import _batch
 from morphojax._descriptors import describe, relative_change
-from morphojax._sweep import load_sweep, map_image, parameter_map, sweep
+from morphojax._parameter_map import parameter_map
+from morphojax._render import map_image
+from morphojax._sweep import sweep
+from morphojax._sweep_result import load_sweep
 from morphojax._sweep_cli import build_sweep, parse_values, register
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -116,9 +119,9 @@ def test_explicit_list_and_batched_initial_states(start):
 # ---- chunks and compilation -----------------------------------------------------------------------
 def test_chunks_with_a_padded_last_chunk_match_and_compile_once(grid, start, monkeypatch):
     # 6 members in chunks of 4: the last chunk holds 2 members and 2 copies of the last one
-    traced = eqx.filter_jit(eqx.debug.assert_max_traces(_sweep._batch, max_traces=1))
-    monkeypatch.setattr(_sweep, "_run_batch", traced)
-    before = _sweep._TRACES["batch"]
+    traced = eqx.filter_jit(eqx.debug.assert_max_traces(_batch._batch_program, max_traces=1))
+    monkeypatch.setattr(_batch, "_run_batch", traced)
+    before = _batch._TRACES["batch"]
     chunked = sweep(mj.Turing(scale=3.0), {"ratio": RATIOS, "upper_a": UPPER_A}, state=start, steps=STEPS, dt=DT,
                     batch_size=4)
     assert chunked.config["batch_size"] == 4
@@ -127,7 +130,7 @@ def test_chunks_with_a_padded_last_chunk_match_and_compile_once(grid, start, mon
     other = sweep(mj.Turing(scale=2.5), {"ratio": [5.0, 6.0, 7.0], "upper_a": [6.0, 5.0]}, state=start, steps=STEPS,
                   dt=DT, batch_size=4)
     assert other.arrays().shape == grid.arrays().shape
-    assert _sweep._TRACES["batch"] == before + 1  # one trace for 4 chunks over two sweeps
+    assert _batch._TRACES["batch"] == before + 1  # one trace for 4 chunks over two sweeps
 
 
 @pytest.mark.parametrize("vmap_size", [2, 3])
@@ -141,16 +144,16 @@ def test_vmap_width_does_not_change_results(grid, start, vmap_size):
 
 def test_default_chunk_is_bounded_and_a_multiple_of_the_devices():
     cpu = jax.devices("cpu")[:1]
-    assert _sweep._chunk_size(None, 10_000, 2 * 128 * 128, cpu) == 16
+    assert _batch._chunk_size(None, 10_000, 2 * 128 * 128, cpu) == 16
     # small sweeps are split so every core gets a chunk (one dispatching thread per core)
-    workers = min(os.cpu_count() or 1, _sweep._MAX_WORKERS, 5)
-    assert _sweep._chunk_size(None, 5, 2 * 16 * 16, cpu) == -(-5 // workers)
-    assert _sweep._inner(None, cpu, 8) == 1 and _sweep._inner(None, cpu * 2, 8) == 8 and _sweep._inner(3, cpu, 8) == 3
-    assert _sweep._chunk_size(3, 10, 100, cpu * 4) == 4  # rounded up to the 4 devices
+    workers = min(os.cpu_count() or 1, _batch._MAX_WORKERS, 5)
+    assert _batch._chunk_size(None, 5, 2 * 16 * 16, cpu) == -(-5 // workers)
+    assert _batch._inner(None, cpu, 8) == 1 and _batch._inner(None, cpu * 2, 8) == 8 and _batch._inner(3, cpu, 8) == 3
+    assert _batch._chunk_size(3, 10, 100, cpu * 4) == 4  # rounded up to the 4 devices
     with pytest.raises(ValueError, match="batch_size"):
-        _sweep._chunk_size(0, 10, 100, cpu)
+        _batch._chunk_size(0, 10, 100, cpu)
     # multi-host: contiguous equal blocks covering every member once
-    blocks = [_sweep._host_block(10, i, 3) for i in range(3)]
+    blocks = [_batch._host_block(10, i, 3) for i in range(3)]
     assert [b[:2] for b in blocks] == [(0, 4), (4, 8), (8, 10)] and {b[2] for b in blocks} == {4}
 
 
@@ -225,7 +228,7 @@ def test_table_and_states_are_written_and_readable(grid, tmp_path):
     ({"upper_a": [float("-inf")]}, r"'upper_a' must be finite or \+inf"),
     ({"growth_rate": [1.0]}, r"growth_rate.*needs a growth schedule"),
     ({"ratio": [4.0, -1.0]}, r"member 1 \(ratio=-1\).*Turing.ratio"),
-    ({"ratio": [4.0, 40.0]}, r"member 1 \(ratio=40\).*explicit-Euler limit"),
+    ({"ratio": [4.0, 40.0]}, r"member 1 \(ratio=40\).*explicit-Euler stability limit"),
 ])
 def test_bad_input_names_the_parameter(start, vary, match):
     with pytest.raises(ValueError, match=match):
