@@ -1,0 +1,106 @@
+"""Meshes of 3D cellular-automaton lattices.
+
+Per species, a closed surface mesh from scikit-image's marching cubes (`species_mesh`),
+written as PLY (coloured like the pictures) or OBJ by the small writers here
+(`write_ply`, `write_obj`, `write_species_meshes`). Coordinates are in lattice cells.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._pictures import state_colours
+
+
+def species_mesh(cells, j: int, *, step_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Surface between species j and every other state (paper 002 Fig. 4b), by marching
+    cubes on the padded indicator, so the surface is closed at the lattice boundary.
+    Returns (vertices (V, 3) float32 in lattice cells, faces (F, 3) int32)."""
+    from skimage.measure import marching_cubes
+
+    cells = np.asarray(cells)
+    if cells.ndim != 3:
+        raise ValueError(f"species_mesh needs a 3D lattice (got shape {cells.shape})")
+    ind = np.pad((cells == j).astype(np.float32), 1)
+    if not ind.any():
+        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
+    # "ascent": the indicator rises into the species, so the triangles wind counter-clockwise
+    # seen from outside (outward normals, as PLY / OBJ viewers expect)
+    verts, faces, _, _ = marching_cubes(ind, level=0.5, step_size=step_size, allow_degenerate=False,
+                                        gradient_direction="ascent")
+    return (verts - 1.0).astype(np.float32), faces.astype(np.int32)
+
+
+def write_ply(path, vertices, faces, colour=None) -> Path:
+    """A binary little-endian PLY triangle mesh (optional uniform RGB vertex colour)."""
+    path = Path(path)
+    vertices = np.asarray(vertices, np.float32).reshape(-1, 3)
+    faces = np.asarray(faces, np.int32).reshape(-1, 3)
+    header = ["ply", "format binary_little_endian 1.0", "comment morphojax cellular automaton",
+              f"element vertex {len(vertices)}", "property float x", "property float y", "property float z"]
+    vdtype = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    if colour is not None:
+        header += ["property uchar red", "property uchar green", "property uchar blue"]
+        vdtype += [("r", "u1"), ("g", "u1"), ("b", "u1")]
+    header += [f"element face {len(faces)}", "property list uchar int vertex_indices", "end_header"]
+    vrec = np.zeros(len(vertices), dtype=vdtype)
+    vrec["x"], vrec["y"], vrec["z"] = vertices.T
+    if colour is not None:
+        vrec["r"], vrec["g"], vrec["b"] = (int(c) for c in colour)
+    frec = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    frec["n"] = 3
+    frec["i"] = faces
+    with open(path, "wb") as fh:
+        fh.write(("\n".join(header) + "\n").encode("ascii"))
+        fh.write(vrec.tobytes())
+        fh.write(frec.tobytes())
+    return path
+
+
+def read_ply(path) -> tuple[np.ndarray, np.ndarray]:
+    """Read back a mesh written by `write_ply` (vertices, faces)."""
+    data = Path(path).read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode("ascii").splitlines()
+    n_v = int(next(h for h in header if h.startswith("element vertex")).split()[-1])
+    n_f = int(next(h for h in header if h.startswith("element face")).split()[-1])
+    coloured = any(h.startswith("property uchar red") for h in header)
+    vdtype = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")] + ([("r", "u1"), ("g", "u1"), ("b", "u1")] if coloured else [])
+    v = np.frombuffer(data, dtype=vdtype, count=n_v, offset=end)
+    f = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", (3,))], count=n_f, offset=end + v.nbytes)
+    return np.stack([v["x"], v["y"], v["z"]], 1), f["i"].copy()
+
+
+def write_obj(path, vertices, faces) -> Path:
+    """A Wavefront OBJ triangle mesh (text; indices are 1-based)."""
+    path = Path(path)
+    vertices = np.asarray(vertices, np.float32).reshape(-1, 3)
+    faces = np.asarray(faces, np.int64).reshape(-1, 3)
+    with open(path, "w") as fh:
+        fh.write("# morphojax cellular automaton\n")
+        np.savetxt(fh, vertices, fmt="v %.4f %.4f %.4f")
+        np.savetxt(fh, faces + 1, fmt="f %d %d %d")
+    return path
+
+
+def write_species_meshes(cells, k: int, stem, fmt: str = "ply") -> list[Path]:
+    """One mesh file per species present: `{stem}_species{j}.{fmt}` (PLY coloured like
+    the images). Returns the paths written."""
+    if fmt not in ("ply", "obj"):
+        raise ValueError(f"unknown mesh format {fmt!r}; allowed: 'ply', 'obj'")
+    stem = Path(stem)
+    colours = state_colours(k)
+    paths = []
+    for j in range(k):
+        verts, faces = species_mesh(cells, j)
+        if len(faces) == 0:
+            continue
+        path = stem.parent / f"{stem.name}_species{j}.{fmt}"
+        if fmt == "ply":
+            write_ply(path, verts, faces, colour=colours[j])
+        else:
+            write_obj(path, verts, faces)
+        paths.append(path)
+    return paths
