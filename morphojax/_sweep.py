@@ -42,9 +42,9 @@ from ._initial import initial_state
 from ._models import AbstractModel
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict, to_jsonable
 from ._state import State
-from ._sweep_members import (DT, GROWTH_RATE, _check_name, _check_values, allowed_names, label, member_model,  # noqa: F401
-                             sweep_members, with_growth_rate)
-from ._sweep_result import Member, SweepResult, load_sweep, member_table, species_index  # noqa: F401
+from ._sweep_members import DT, GROWTH_RATE, label, member_model, sweep_members, with_growth_rate
+from ._sweep_members import _check_name, _check_values  # noqa: F401  (the sweep command checks its flags with them)
+from ._sweep_result import SweepResult, member_table, species_index
 
 
 def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0, dt=None, boundary: str = "wrap",
