@@ -20,7 +20,10 @@ from ._models import (
 )
 from ._state import State
 from ._initial import constant_state, gray_scott_state, initial_state, paper_state, random_state, thesis_state
-from ._simulate import Barrier, SimulationError, rollout, run_status, simulate
+from ._bounds import Barrier
+from ._status import Run, RunStatus, SimulationError
+from ._plan import BlockLadder, WholeCapacity
+from ._simulate import rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
@@ -56,6 +59,7 @@ __all__ = [
     "AutomatonRun",
     "Bard",
     "Barrier",
+    "BlockLadder",
     "BOUNDARIES",
     "cells_image",
     "changed_fraction",
@@ -105,8 +109,10 @@ __all__ = [
     "render_experiment",
     "Result",
     "rollout",
+    "Run",
     "run_experiment",
     "run_status",
+    "RunStatus",
     "save_npz",
     "save_png",
     "simulate",
@@ -124,6 +130,7 @@ __all__ = [
     "Turing",
     "volume_fractions",
     "weighted_volume_difference",
+    "WholeCapacity",
     "write_obj",
     "write_ply",
     "write_species_meshes",

@@ -28,7 +28,7 @@ from ._serialise import (bounds_from_data, bounds_to_data, dumps, from_jsonable,
                          key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict, save_npz,
                          source_from_dict, source_to_dict, to_jsonable)
 from ._models import AbstractModel
-from ._simulate import Barrier, simulate
+from ._simulate import simulate
 from ._state import State
 from ._version import __version__
 

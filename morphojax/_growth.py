@@ -126,24 +126,10 @@ class Growth(eqx.Module):
                 "Initial(capacity=...) / Phase(capacity=...))"
             )
 
-    def maybe_expand(self, p, size, k, dt, key, overflow, repad):
-        """Inside the step: expand when phase step `k` (1-based) opens a period.
-
-        `p` is the ghost-padded array; `repad(p, x, size)` writes the expanded interior `x`
-        back into it with the ghost cells of the new active `size`.
-        """
+    def is_due(self, k, dt):
+        """Whether phase step `k` (1-based, may be traced) opens a period: an expansion follows it."""
         period = self.period(dt)
-        due = (period > 0) & ((k - 1) % jnp.maximum(period, 1) == 0)
-        room = (size[0] < p.shape[-2] - 2) & (size[1] < p.shape[-1] - 2)
-        do = due & room
-
-        def grow(args):
-            p, size = args
-            x, size = self.expand(p[..., 1:-1, 1:-1], size, key)
-            return repad(p, x, size), size
-
-        p, size = jax.lax.cond(do, grow, lambda a: a, (p, size))
-        return p, size, overflow | (due & ~room)
+        return (period > 0) & ((k - 1) % jnp.maximum(period, 1) == 0)
 
     # ---- one expansion -----------------------------------------------------------------
     def expand(self, x, size, key):

@@ -272,14 +272,14 @@ def test_growth_under_jit_vmap_and_grad():
 
 def test_growth_compiles_once_per_phase():
     """The whole growing run is one compiled program, whatever sizes it passes through."""
-    from morphojax import _simulate
+    from morphojax import _loop
 
     state = mj.paper_state(jax.random.key(0), (10, 10), capacity=(30, 30))
     mj.simulate(mj.Turing(8.0, 3.0), state, steps=900, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(1))
-    before = _simulate._integrate._cached._cache_size()
+    before = _loop._integrate._cached._cache_size()
     out = mj.simulate(mj.Turing(9.0, 2.0), state, steps=900, dt=0.004, growth=mj.Growth(2.5), key=jax.random.key(2))
     assert out.shape == (19, 19)
-    assert _simulate._integrate._cached._cache_size() == before
+    assert _loop._integrate._cached._cache_size() == before
 
 
 def test_block_ladder_placement_is_optimal():
@@ -287,7 +287,7 @@ def test_block_ladder_placement_is_optimal():
     minimise the computed cells; checked against every choice of that many sizes."""
     import itertools
 
-    from morphojax._simulate import _ladder, _placed_ladder
+    from morphojax._plan import geometric_ladder, placed_ladder
 
     rng = np.random.default_rng(0)
     for trial in range(20):
@@ -295,12 +295,12 @@ def test_block_ladder_placement_is_optimal():
         rows = sorted(int(r) for r in rng.integers(first, first + 90, 30))
         weights = [int(w) for w in rng.integers(1, 100, len(rows))]
         cap, area = first + 100, (lambda r: r * (r + 3))
-        placed = _placed_ladder(rows, weights, cap, 1.25, 8, area)
+        placed = placed_ladder(rows, weights, cap, 1.25, 8, area)
 
         def work(ladder):
             return sum(wt * area(next(b for b in ladder if b >= r)) for r, wt in zip(rows, weights))
 
-        geometric = _ladder(min(rows), max(rows), cap, 1.25, 8)
+        geometric = geometric_ladder(min(rows), max(rows), cap, 1.25, 8)
         cands = sorted({min(-(-r // 8) * 8, cap) for r in range(min(rows), max(rows) + 1)})
         best = min(work(c) for k in range(1, len(geometric) + 1) for c in itertools.combinations(cands, k)
                    if c[-1] >= max(rows))
@@ -324,20 +324,20 @@ def test_slow_growth_runs_exactly_the_steps_asked():
 def test_progress_pieces_of_a_growing_run_share_compiled_programs(monkeypatch):
     """With a progress bar a growing run goes in pieces: the result is the same, and the
     pieces reuse a few compiled programs (one per block size) instead of one each."""
-    from morphojax import _simulate
+    from morphojax import _loop
 
     state = mj.State.from_arrays(mj.paper_state(jax.random.key(5), (150, 150)).arrays(), capacity=(200, 200))
     model, dt, key = mj.Turing(4.0, 3.0), 0.01, jax.random.key(6)
     growth = mj.Growth(rate=1.0 / (8 * dt))  # 50 expansions in 400 steps
     whole = mj.simulate(model, state, 400, dt, growth=growth, key=key)
     seen = []
-    real = _simulate._integrate
+    real = _loop._integrate
 
     def spy(*args, **kwargs):
-        seen.append((kwargs["steps"], kwargs["plan"]))
+        seen.append((kwargs["steps"], kwargs["segments"]))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(_simulate, "_integrate", spy)
+    monkeypatch.setattr(_loop, "_integrate", spy)
     compiled = real._cached._cache_size()
     pieces = mj.simulate(model, state, 400, dt, growth=growth, key=key, progress=True)
     np.testing.assert_array_equal(np.asarray(pieces.fields), np.asarray(whole.fields))

@@ -135,11 +135,11 @@ def test_no_recompile_for_new_parameter_values():
 
 def test_simulate_itself_compiles_once_per_configuration():
     """Eager calls with new parameter values hit the cache of the compiled core."""
-    from morphojax import _simulate
+    from morphojax import _loop
 
     state = _state()
     mj.simulate(mj.Turing(5.0, 2.0), state, steps=17, dt=0.001)
-    before = _simulate._integrate._cached._cache_size()
+    before = _loop._integrate._cached._cache_size()
     for r in (6.0, 7.0, 9.5):
         mj.simulate(mj.Turing(r, 2.5, lower=(0.0, r / 10)), state, steps=17, dt=0.0011)
-    assert _simulate._integrate._cached._cache_size() == before
+    assert _loop._integrate._cached._cache_size() == before

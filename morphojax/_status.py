@@ -1,0 +1,87 @@
+"""How a run ended: ok, non-finite at step n, or growth past the capacity.
+
+In the manner of optimistix's `RESULTS` and `throw=`: the compiled loop records what went
+wrong as arrays (so failed members of a vmapped sweep are recorded, not raised), and one
+place turns that record into an error or a message.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax.numpy as jnp
+from jax import Array
+
+from ._checks import is_concrete
+
+
+class SimulationError(ValueError):
+    """A run that went wrong: non-finite values (with the step), or growth past capacity."""
+
+
+class RunStatus(eqx.Module):
+    """What the loop recorded about a run.
+
+    Attributes:
+        nonfinite_step: int32, the first step whose result held NaN or Inf; -1 if none.
+        overflow: bool, growth was due while the state's capacity was full.
+
+    Works under `vmap` (the attributes then carry the batch axes).
+    """
+
+    nonfinite_step: Array
+    overflow: Array
+
+    @classmethod
+    def healthy(cls) -> "RunStatus":
+        return cls(jnp.asarray(-1, jnp.int32), jnp.asarray(False))
+
+    @property
+    def ok(self) -> Array:
+        """True where the run neither blew up nor overflowed."""
+        return (self.nonfinite_step < 0) & ~self.overflow
+
+    def merge(self, later: "RunStatus") -> "RunStatus":
+        """This status followed by a later piece's: the first blow-up step, any overflow."""
+        step = jnp.where(self.nonfinite_step >= 0, self.nonfinite_step, later.nonfinite_step)
+        return RunStatus(step, self.overflow | later.overflow)
+
+    def message(self) -> str:
+        """The status in words (concrete values)."""
+        if int(self.nonfinite_step) >= 0:
+            return (f"the state became non-finite (NaN or Inf) at step {int(self.nonfinite_step)}: the run blew up. "
+                    "Reduce dt, check the parameters, or use throw=False to get the state anyway.")
+        if bool(self.overflow):
+            return "growth exceeded the state's capacity during the run"
+        return "ok"
+
+    def check(self, state, throw: bool):
+        """`state` as it is, after raising `SimulationError` for a failed run when `throw`.
+
+        Eagerly the error names the step; inside `jit` it becomes an `eqx.error_if` on the
+        state's fields (a runtime error without the step).
+        """
+        if not throw:
+            return state
+        if is_concrete(self.nonfinite_step, self.overflow):
+            if not bool(self.ok):
+                raise SimulationError(self.message())
+            return state
+        fields = eqx.error_if(state.fields, self.nonfinite_step >= 0,
+                              "the state became non-finite (NaN or Inf) during the run; "
+                              "run eagerly (outside jit) to get the step, or pass throw=False")
+        fields = eqx.error_if(fields, self.overflow, "growth exceeded the state's capacity during the run")
+        return eqx.tree_at(lambda s: s.fields, state, fields)
+
+
+class Run(NamedTuple):
+    """What `run_status` returns: unpacks as (state, nonfinite_step, overflow)."""
+
+    state: object
+    nonfinite_step: Array
+    overflow: Array
+
+    @property
+    def status(self) -> RunStatus:
+        return RunStatus(self.nonfinite_step, self.overflow)
