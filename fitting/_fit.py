@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -27,8 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from morphojax._models import AbstractModel, model_from_name
-from morphojax._experiment import Experiment
+import morphojax as mj
 
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
@@ -65,10 +65,8 @@ class FitResult:
 
     def to_json(self) -> dict:
         """Everything in the result as a JSON-ready dict (top-level 'params')."""
-        from morphojax._serialise import model_to_dict, to_jsonable
-
-        model = model_to_dict(self.model) if isinstance(self.model, AbstractModel) else self.model.to_dict()
-        return to_jsonable({
+        model = mj.model_to_dict(self.model) if isinstance(self.model, mj.AbstractModel) else self.model.to_dict()
+        return mj.to_jsonable({
             "params": self.params, "loss": self.loss, "noise_floor": self.noise_floor,
             "loss_over_noise_floor": self.loss / self.noise_floor if self.noise_floor > 0 else None,
             "model": model, "target": self.target, "config": self.config, "timings": self.timings,
@@ -77,11 +75,9 @@ class FitResult:
 
     def save_json(self, path) -> Path:
         """Write `to_json()` to `path`; returns the path."""
-        from morphojax._serialise import dumps
-
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(dumps(self.to_json(), indent=1))
+        path.write_text(json.dumps(self.to_json(), allow_nan=False, indent=1))
         return path
 
     def preview(self, path=None, scale: int | None = None):
@@ -96,8 +92,8 @@ class FitResult:
 
 def _as_template(model, shape):
     if isinstance(model, str):
-        return model_from_name(model)
-    if isinstance(model, (AbstractModel, Experiment)):
+        return mj.model_from_name(model)
+    if isinstance(model, (mj.AbstractModel, mj.Experiment)):
         return model
     raise ValueError(f"model must be a model name, a model or an Experiment (got {type(model).__name__})")
 

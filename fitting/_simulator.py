@@ -27,21 +27,19 @@ import jax.numpy as jnp
 import numpy as np
 
 import morphojax as mj
-from morphojax._experiment import Experiment, Phase
-from morphojax._models import AbstractModel, Composite
 
 
-def _apply(model: AbstractModel, params: dict) -> AbstractModel:
+def _apply(model: mj.AbstractModel, params: dict) -> mj.AbstractModel:
     """Set the parameters this model has (composites: in every part that has them)."""
-    if isinstance(model, Composite):
+    if isinstance(model, mj.Composite):
         parts = tuple(_apply(p, params) for p in model.parts)
-        return Composite(parts, species=model.species)
+        return mj.Composite(parts, species=model.species)
     known = {k: v for k, v in params.items() if k in model.parameters()}
     return model.replace(**known) if known else model
 
 
-def _has(model: AbstractModel, name: str) -> bool:
-    if isinstance(model, Composite):
+def _has(model: mj.AbstractModel, name: str) -> bool:
+    if isinstance(model, mj.Composite):
         return any(_has(p, name) for p in model.parts)
     return name in model.parameters()
 
@@ -79,24 +77,24 @@ class Simulator(eqx.Module):
     def __post_init__(self):
         # the compared lattice of an experiment, fixed while the parameters are concrete
         # (inside compiled fits the growth rates are traced)
-        if self.compare is None and isinstance(self.template, Experiment):
+        if self.compare is None and isinstance(self.template, mj.Experiment):
             self.compare = self.final_shape()
 
     def __check_init__(self):
-        if not isinstance(self.template, (AbstractModel, Experiment)):
+        if not isinstance(self.template, (mj.AbstractModel, mj.Experiment)):
             raise ValueError(f"Simulator.template must be a model or an Experiment (got {type(self.template).__name__})")
-        if isinstance(self.template, AbstractModel) and (self.steps < 1 or not 0 <= self.window <= self.steps):
+        if isinstance(self.template, mj.AbstractModel) and (self.steps < 1 or not 0 <= self.window <= self.steps):
             raise ValueError(f"need steps >= 1 and 0 <= window <= steps (got steps={self.steps}, window={self.window})")
 
     # ---- parameters -------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
         """Names that can be fitted or fixed (for experiments: the union over phases, and growth_rate)."""
-        if isinstance(self.template, AbstractModel):
+        if isinstance(self.template, mj.AbstractModel):
             return list(self.template.parameters())
         names = []
         for ph in self.template.phases:
             for n in ph.model.parameters():
-                base = n.split(".", 1)[-1] if isinstance(ph.model, Composite) else n
+                base = n.split(".", 1)[-1] if isinstance(ph.model, mj.Composite) else n
                 if base not in names:
                     names.append(base)
         return names + (["growth_rate"] if any(ph.growth is not None for ph in self.template.phases) else [])
@@ -104,7 +102,7 @@ class Simulator(eqx.Module):
     def check_names(self, names) -> None:
         """Raise a ValueError for a name the template does not have (or an unknown PHASE: prefix)."""
         known = self.parameter_names()
-        phases = {ph.name for ph in self.template.phases} if isinstance(self.template, Experiment) else set()
+        phases = {ph.name for ph in self.template.phases} if isinstance(self.template, mj.Experiment) else set()
         for n in names:
             ph, _, base = n.rpartition(":")
             if base not in known or (ph and ph not in phases):
@@ -114,7 +112,7 @@ class Simulator(eqx.Module):
     def build(self, params: dict):
         """The model or experiment with `params` (and `fixed`) applied."""
         params = {**dict(self.fixed), **params}
-        if isinstance(self.template, AbstractModel):
+        if isinstance(self.template, mj.AbstractModel):
             return _apply(self.template, params)
         phases = []
         for ph in self.template.phases:
@@ -127,7 +125,7 @@ class Simulator(eqx.Module):
             if growth is not None and "growth_rate" in mine:
                 growth = eqx.tree_at(lambda g: g.rate, growth, jnp.asarray(mine["growth_rate"], growth.rate.dtype))
             model_params = {k: v for k, v in mine.items() if k != "growth_rate" and _has(ph.model, k)}
-            phases.append(Phase(**{**ph.__dict__, "model": _apply(ph.model, model_params), "growth": growth}))
+            phases.append(mj.Phase(**{**ph.__dict__, "model": _apply(ph.model, model_params), "growth": growth}))
         return dataclasses.replace(self.template, phases=tuple(phases))
 
     # ---- forward ----------------------------------------------------------------------
@@ -141,13 +139,13 @@ class Simulator(eqx.Module):
     def _species(self, names) -> int:
         if self.species is not None:
             return names.index(self.species)
-        if isinstance(self.template, Experiment) and self.template.show in names:
+        if isinstance(self.template, mj.Experiment) and self.template.show in names:
             return names.index(self.template.show)
         return len(names) - 1
 
     def run(self, params: dict, key):
         """One simulated field (rows, cols) for `params` and `key`; NaN never comes out."""
-        if isinstance(self.template, AbstractModel):
+        if isinstance(self.template, mj.AbstractModel):
             model = self.build(params)
             state = mj.initial_state(self.template, jax.random.fold_in(key, 0), self.shape)
             dt = self.time_step(model)
@@ -173,7 +171,7 @@ class Simulator(eqx.Module):
         rates are fitted, `fit` sets `compare` to the lattice of the lowest rates, so every
         point compares the same top-left window of its grown lattice.
         """
-        if isinstance(self.template, AbstractModel):
+        if isinstance(self.template, mj.AbstractModel):
             return tuple(self.shape)
         if params is None and self.compare is not None:
             return tuple(self.compare)
@@ -194,7 +192,7 @@ class Simulator(eqx.Module):
 
     def check_capacity(self, params: dict) -> None:
         """Raise if the growth `params` give (concrete values) needs more than the capacity."""
-        if isinstance(self.template, AbstractModel):
+        if isinstance(self.template, mj.AbstractModel):
             return
         for ph, ((rows, cols), cap) in zip(self.template.phases, self._sizes(params)):
             if rows > cap[0] or cols > cap[1]:
@@ -204,13 +202,12 @@ class Simulator(eqx.Module):
 
     def describe(self) -> dict:
         """JSON-ready description of the simulator (template, lattice, steps, window, time step)."""
-        from morphojax._serialise import model_to_dict, to_jsonable
-
-        tmpl = model_to_dict(self.template) if isinstance(self.template, AbstractModel) else self.template.to_dict()
-        return to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
-                            "window": self.window, "species": self.species, "boundary": self.boundary,
-                            "stencil": self.stencil, "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
-                            "fixed": dict(self.fixed)})
+        tmpl = (mj.model_to_dict(self.template) if isinstance(self.template, mj.AbstractModel)
+                else self.template.to_dict())
+        return mj.to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
+                               "window": self.window, "species": self.species, "boundary": self.boundary,
+                               "stencil": self.stencil, "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
+                               "fixed": dict(self.fixed)})
 
 
 def fixed_tuple(fixed: dict | None) -> tuple:

@@ -16,26 +16,21 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-# name: (low, high, geometric?)
+# name: (low, high, geometric?), grouped by the model that has the parameter
 DEFAULT_BOUNDS = {
-    "ratio": (2.0, 50.0, True),
-    "scale": (0.2, 8.0, True),
-    "alpha": (8.0, 20.0, False),
-    "beta": (8.0, 20.0, False),
-    "sp": (1e-3, 1.0, True),
-    "da": (1e-3, 10.0, True),
-    "db": (1e-3, 10.0, True),
-    "feed": (0.005, 0.1, False),
-    "kill": (0.03, 0.08, False),
-    "du": (0.02, 1.0, True),
-    "dv": (0.01, 0.5, True),
-    "threshold": (0.0, 10.0, False),
-    "width": (0.5, 10.0, True),
-    "diffusion": (0.05, 5.0, True),
-    "lower_a": (0.0, 5.0, False),
-    "lower_b": (0.0, 6.0, False),
-    "upper_a": (3.5, 12.0, False),
-    "upper_b": (2.0, 20.0, False),
+    # Turing
+    "ratio": (2.0, 50.0, True), "scale": (0.2, 8.0, True),
+    # Bard
+    "alpha": (8.0, 20.0, False), "beta": (8.0, 20.0, False),
+    "sp": (1e-3, 1.0, True), "da": (1e-3, 10.0, True), "db": (1e-3, 10.0, True),
+    # Gray-Scott
+    "feed": (0.005, 0.1, False), "kill": (0.03, 0.08, False),
+    "du": (0.02, 1.0, True), "dv": (0.01, 0.5, True),
+    # Reinforcement
+    "threshold": (0.0, 10.0, False), "width": (0.5, 10.0, True), "diffusion": (0.05, 5.0, True),
+    # limits of any two-species model, and the growth schedule
+    "lower_a": (0.0, 5.0, False), "lower_b": (0.0, 6.0, False),
+    "upper_a": (3.5, 12.0, False), "upper_b": (2.0, 20.0, False),
     "growth_rate": (0.1, 20.0, True),
 }
 

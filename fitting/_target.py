@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 
+import morphojax as mj
+
 CHANNELS = ("luminance", "red", "green", "blue", "alpha", "saturation", "value")
 MIN_PIXELS = 16  # a crop smaller than this cannot show a texture
 MIN_CELLS = 16  # nor can a lattice smaller than this
@@ -82,13 +84,12 @@ def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 8.0) -> f
         x = x[: x.shape[0] // 2 * 2, : x.shape[1] // 2 * 2]
         x = 0.25 * (x[::2, ::2] + x[1::2, ::2] + x[::2, 1::2] + x[1::2, 1::2])
         factor *= 2
-    from morphojax._descriptors import radial_power_spectrum
     from skimage.filters import gaussian
 
     # remove shading and illumination (scales much larger than the pattern), taper the edges
     x = x - gaussian(x, sigma=min(x.shape) / 8.0, mode="reflect", preserve_range=True)
     window = np.outer(np.hanning(x.shape[0]), np.hanning(x.shape[1]))
-    freq, power = radial_power_spectrum(x * window)
+    freq, power = mj.radial_power_spectrum(x * window)
     # look for the peak between 4 periods per crop and 4 pixels per period
     band = (freq >= 4.0 / min(x.shape)) & (freq <= 0.25)
     if not band.any() or not (power[band] > 0).any():

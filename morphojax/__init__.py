@@ -29,7 +29,7 @@ from ._experiment import Experiment, Initial, Phase, Result, load_experiment, ru
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, map_image, montage, render, render_experiment, save_png, to_image
 from ._presets import PRESETS, leopard_row_weights, preset
-from ._descriptors import Descriptors, describe, relative_change
+from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
 from ._sweep import sweep
 from ._sweep_result import Member, SweepResult, load_sweep
 from ._parameter_map import parameter_map
@@ -102,6 +102,7 @@ __all__ = [
     "preset",
     "PRESETS",
     "random_cells",
+    "radial_power_spectrum",
     "random_state",
     "Reinforcement",
     "relative_change",
