@@ -43,7 +43,7 @@ def main():
                 images += [render_experiment(s, res.experiment, scale=2) for s in shots] or [res.image(scale=2)]
                 labels.append(member)
             if name == "fig4":
-                from morphojax._presets import FIG4_RATIOS
+                from morphojax.presets import FIG4_RATIOS
 
                 sheet = montage(images, 5, col_labels=[f"r = {r:g}" for r in FIG4_RATIOS],
                                 row_labels=["B >= 0", "Ua", "Lb"])

@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import morphojax as mj  # noqa: E402
-from morphojax._presets import leopard_row_weights  # noqa: E402
+from morphojax.presets import leopard_row_weights  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

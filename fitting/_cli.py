@@ -1,10 +1,11 @@
-"""`morphojax fit PHOTO ...`: fit a model to a photo from the command line."""
+"""`morphojax fit PHOTO ...`: fit a model to a photo from the command line.
+
+`register` is the entry point `fit` of the group `morphojax.commands` (pyproject.toml):
+`morphojax` finds it through the installed metadata, so the core never imports `fitting`."""
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
 
 
@@ -29,6 +30,7 @@ def _pairs(items, what: str) -> dict:
 
 
 def register(subparsers) -> None:
+    """Add the `fit` subcommand to an argparse subparsers object."""
     p = subparsers.add_parser("fit", help="fit model parameters to a photo's texture statistics",
                               description="Fit parameters of a model so that its simulated texture matches a photo. "
                                           "Writes a JSON report (top-level 'params') and a preview picture.")
@@ -86,15 +88,3 @@ def run(args) -> int:
                       "seconds": round(result.timings["total"], 1), "json": str(args.json),
                       "preview": str(args.preview) if args.preview else None}))
     return 0
-
-
-def main(argv=None) -> int:  # pragma: no cover - convenience entry
-    parser = argparse.ArgumentParser(prog="morphojax")
-    sub = parser.add_subparsers(dest="command", required=True)
-    register(sub)
-    args = parser.parse_args(argv)
-    try:
-        return args.func(args)
-    except ValueError as err:
-        print(f"morphojax fit: error: {err}", file=sys.stderr)
-        return 2

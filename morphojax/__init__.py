@@ -28,7 +28,7 @@ from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, map_image, montage, render, render_experiment, save_png, to_image
-from ._presets import PRESETS, leopard_row_weights, preset
+from .presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
 from ._sweep import sweep
 from ._sweep_result import Member, SweepResult, load_sweep
@@ -101,8 +101,8 @@ __all__ = [
     "Phase",
     "preset",
     "PRESETS",
-    "random_cells",
     "radial_power_spectrum",
+    "random_cells",
     "random_state",
     "Reinforcement",
     "relative_change",

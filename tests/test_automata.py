@@ -456,7 +456,7 @@ def test_images_and_meshes(tmp_path):
 
 
 def test_presets_quick_and_deterministic(tmp_path):
-    from morphojax._automata_cli import PRESETS
+    from morphojax.presets import AUTOMATON_PRESETS as PRESETS
 
     assert len(PRESETS) >= 6
     for name, preset in PRESETS.items():
@@ -476,7 +476,7 @@ def test_presets_quick_and_deterministic(tmp_path):
 
 
 def test_ca_command_3d(tmp_path, capsys):
-    from morphojax._automata_cli import register
+    from morphojax.cli._ca import register
 
     parser = argparse.ArgumentParser()
     register(parser.add_subparsers(dest="command"))

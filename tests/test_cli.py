@@ -3,13 +3,14 @@
 import json
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 import pytest
 from PIL import Image
 
 import morphojax as mj
-from morphojax._cli import main
+from morphojax.cli import main
 
 
 def _arrays(path):
@@ -22,6 +23,32 @@ def test_presets_lists_the_papers_experiments(capsys):
     out = capsys.readouterr().out
     for name in ("leopard", "whipray", "frog", "squirrel", "giraffe", "nudibranch", "fig4-r40-lb", "development"):
         assert name in out
+    # one table of every kind, fitting a 100-column terminal
+    for name in ("young-fig8", "dur-fig9", "life-glider"):
+        assert name in out
+    assert max(len(line) for line in out.splitlines()) <= 100
+    assert {p.kind for p in mj.PRESETS.values()} == {"reaction-diffusion", "automaton"}
+    assert all(p.figure and p.description and p.build or getattr(p, "members", ()) for p in mj.PRESETS.values())
+
+
+def test_run_dispatches_on_the_preset_kind(tmp_path, capsys):
+    """An automaton preset runs through `morphojax run` like an experiment; it is no experiment."""
+    assert main(["run", "life-glider", "--quick", "--out", str(tmp_path / "g")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["image"] == str(tmp_path / "g.png") and summary["glider_moved_diagonally"]
+    assert (tmp_path / "g.png").exists() and (tmp_path / "g.npz").exists()
+    with pytest.raises(ValueError, match="'life-glider' is an automaton run"):
+        mj.preset("life-glider")
+
+
+def test_core_does_not_import_fitting():
+    """`fit` reaches the command line through the entry-point group, never through the core."""
+    code = ("import sys, morphojax, morphojax.cli; assert 'fitting' not in sys.modules; "
+            "from importlib.metadata import entry_points; "
+            "print(sorted(e.value for e in entry_points(group='morphojax.commands')))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert "fitting._cli:register" in res.stdout
 
 
 def test_run_writes_png_and_npz_and_is_deterministic(tmp_path, capsys):

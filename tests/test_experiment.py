@@ -9,7 +9,7 @@ import pytest
 import morphojax as mj
 from morphojax._descriptors import describe
 from morphojax._experiment import Experiment, Initial, Phase
-from morphojax._presets import PRESETS, preset
+from morphojax.presets import REACTION_DIFFUSION_PRESETS as PRESETS, preset
 
 
 def _two_phase():

@@ -211,7 +211,7 @@ def test_fit_a_growing_experiment():
 
 
 def test_cli_fit(tmp_path, small_fit):
-    from morphojax._cli import main
+    from morphojax.cli import main
 
     # the same simulator settings as `small_fit`, so the compiled programs are reused
     sim = fitting.Simulator(mj.Turing(), shape=(40, 40), steps=3000, window=300)

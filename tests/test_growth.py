@@ -217,7 +217,7 @@ def test_shuffle_uses_every_index_once_per_pass():
 
 
 def test_weights_halve_the_middle_rows():
-    from morphojax._presets import leopard_row_weights
+    from morphojax.presets import leopard_row_weights
 
     growth = mj.Growth(1.0, row_weights=leopard_row_weights())
     law = growth.law(90, growth.row_weights)

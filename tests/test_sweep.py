@@ -25,7 +25,7 @@ from morphojax._parameter_map import parameter_map
 from morphojax._render import map_image
 from morphojax._sweep import sweep
 from morphojax._sweep_result import load_sweep
-from morphojax._sweep_cli import build_sweep, parse_values, register
+from morphojax.cli._sweep import build_sweep, parse_values, register
 
 ROOT = Path(__file__).resolve().parents[1]
 SHAPE = (16, 16)

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+import morphojax as mj
+
 _RANGE = re.compile(r"^\s*([^:]+):([^:]+):([^:]+)\s*$")
 DEFAULT_TIME = 100.0  # the leopard paper's Fig. 4 runs to t = 100
 DT_SAFETY = 0.8  # default dt = DT_SAFETY x the explicit-Euler limit of the diffusion
@@ -96,11 +98,8 @@ def _split(option: str, item: str):
 
 def build_sweep(args):
     """(model, vary, kwargs for `sweep`) from parsed arguments; bad input raises ValueError."""
-    from ._growth import Growth
-    from ._domain import max_stable_dt
-    from ._lattice import normalise_stencil
-    from ._models import model_from_name
-    from ._sweep import DT, GROWTH_RATE, _check_name, _check_values
+    # the sweep's own name and value checks, so bad input is reported before any run
+    from morphojax._sweep_members import DT, GROWTH_RATE, _check_name, _check_values
 
     fixed = {}
     for item in args.fixed:
@@ -111,8 +110,8 @@ def build_sweep(args):
             raise ValueError(f"--fixed {name}: {text!r} is not a number") from None
         if math.isnan(fixed[name]):
             raise ValueError(f"--fixed {name}: NaN is not a parameter value")
-    model = model_from_name(args.model, **fixed)
-    growth = None if args.growth is None else Growth(rate=args.growth)
+    model = mj.model_from_name(args.model, **fixed)
+    growth = None if args.growth is None else mj.Growth(rate=args.growth)
     vary = {}
     for item in args.vary:
         name, text = _split("--vary", item)
@@ -121,16 +120,17 @@ def build_sweep(args):
         if name in fixed:
             raise ValueError(f"{name} is both --fixed and --vary")
         if name == GROWTH_RATE and growth is None:
-            growth = Growth(rate=1.0)  # the rate is swept; the schedule needs a Growth
+            growth = mj.Growth(rate=1.0)  # the rate is swept; the schedule needs a Growth
         _check_name(model, growth, name)
         vary[name] = _check_values(name, parse_values(name, text)).tolist()
-    stencil = normalise_stencil(args.stencil)
+    lattice = mj.Lattice(stencil=args.stencil, boundary=args.boundary)
+    stencil = lattice.stencil
     if args.dt is None:
         if DT in vary:
             dt = None
         else:
-            limit = min(max_stable_dt(model.replace(**{k: v for k, v in c.items() if k != GROWTH_RATE}).max_diffusion(),
-                                      stencil) for c in _combos(vary))
+            limit = min(lattice.max_stable_dt(model.replace(**{k: v for k, v in c.items() if k != GROWTH_RATE})
+                                              .max_diffusion()) for c in _combos(vary))
             if not math.isfinite(limit):
                 raise ValueError("--dt is required: the model has no diffusion, so there is no stable limit "
                                  "to pick from")
@@ -154,7 +154,7 @@ def build_sweep(args):
     if growth is not None:
         rates = vary.get(GROWTH_RATE, [float(np.asarray(growth.rate))])
         dts = vary.get(DT, [dt])
-        n_exp = max(Growth(rate=r).expansions(steps, d) for r in rates for d in dts)
+        n_exp = max(mj.Growth(rate=r).expansions(steps, d) for r in rates for d in dts)
         capacity = (rows + n_exp, cols + n_exp)
     kwargs = dict(steps=steps, dt=dt if dt is not None else min(vary[DT]), boundary=args.boundary, stencil=stencil,
                   growth=growth, batch_size=args.batch_size, devices=args.devices, key=args.seed,
@@ -173,10 +173,8 @@ def _combos(vary):
 
 
 def run_sweep_command(args) -> int:
-    from ._sweep import sweep
-
     model, vary, kwargs = build_sweep(args)
-    result = sweep(model, vary, **kwargs)
+    result = mj.sweep(model, vary, **kwargs)
     written = result.save(args.out, species=kwargs["species"], cmap=args.cmap, scale=args.scale)
     patterns = Counter(row.get("pattern", "") for row in result.table)
     print(json.dumps({"written": [str(p) for p in written.values()], "members": len(result),

@@ -1,4 +1,5 @@
-"""The papers' experiments as presets: `morphojax run NAME` or `run_experiment(preset(NAME))`.
+"""The papers' reaction-diffusion experiments as presets: `morphojax run NAME` or
+`run_experiment(preset(NAME))`.
 
 Parameters come from the leopard paper's Tables 1-2 and section 7 (figures 4-17), and the
 thesis's listings (figures 7.13 and 7.15). Where a paper leaves a number out, the choice is
@@ -13,53 +14,17 @@ its "conc 4 dev d" is uniform in [4 - d, 4 + d).
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import Callable
 
 import numpy as np
 
-from ._experiment import Experiment, Initial, Phase
-from ._growth import Growth, Source
-from ._models import Bard, Composite, GrayScott, Reinforcement, Turing
-from ._render import Gradient
+from .._experiment import Experiment, Initial, Phase
+from .._growth import Growth, Source
+from .._models import Bard, Composite, GrayScott, Reinforcement, Turing
+from .._render import Gradient
+from ._registry import ExperimentPreset, register, registered
 
 INF = math.inf
-
-
-@dataclasses.dataclass(frozen=True)
-class Preset:
-    """A named experiment (`build(quick)`), or a figure made of several (`members`, shown as
-    the rows of one montage, e.g. the three rows of Fig. 6)."""
-
-    name: str
-    description: str
-    figure: str
-    build: Callable[[bool], Experiment] | None = None
-    members: tuple = ()
-
-    def experiment(self, quick: bool = False) -> Experiment:
-        if self.build is None:
-            raise ValueError(f"preset {self.name!r} is a figure of several experiments: {', '.join(self.members)}")
-        return self.build(quick)
-
-
-PRESETS: dict[str, Preset] = {}
-
-
-def _register(name, description, figure):
-    def deco(fn):
-        PRESETS[name] = Preset(name, description, figure, fn)
-        return fn
-
-    return deco
-
-
-def preset(name: str, quick: bool = False) -> Experiment:
-    """The experiment of a preset by name (see `PRESETS`, or `morphojax presets`)."""
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r}; see `morphojax presets` (e.g. {', '.join(list(PRESETS)[:4])})")
-    return PRESETS[name].experiment(quick)
 
 
 # ---- static domains: leopard paper Fig. 4 (Table 2) -------------------------------------
@@ -96,9 +61,8 @@ def _fig4_name(r, variant):
 
 for _r, _ua, _lb, _dt in zip(FIG4_RATIOS, FIG4_UA, FIG4_LB, FIG4_DT):
     for _v, _what in (("std", "no upper limit, B >= 0"), ("ua", "upper limit on A"), ("lb", "lower limit on B")):
-        PRESETS[_fig4_name(_r, _v)] = Preset(
-            _fig4_name(_r, _v), f"static 50x50 Turing, r = {_r:g}, {_what}", "leopard paper Fig. 4",
-            _fig4(_r, _ua, _lb, _dt, _v))
+        register(ExperimentPreset(_fig4_name(_r, _v), f"static 50x50 Turing, r = {_r:g}, {_what}",
+                                  "leopard paper Fig. 4", _fig4(_r, _ua, _lb, _dt, _v)))
 
 
 # ---- growing domains: leopard paper Fig. 5 ------------------------------------------------
@@ -124,12 +88,12 @@ def _fig5(r, ua, lb, dt, variant):
 for _r, _ua, _lb, _dt in zip(FIG4_RATIOS, FIG4_UA, FIG4_LB, FIG4_DT):
     for _v, _what in (("std", "B >= 0"), ("ua", "upper limit on A"), ("lb", "lower limit on B")):
         _n = _fig4_name(_r, _v).replace("fig4", "fig5")
-        PRESETS[_n] = Preset(_n, f"Turing r = {_r:g} growing 50x50 -> 100x100, {_what}", "leopard paper Fig. 5",
-                             _fig5(_r, _ua, _lb, _dt, _v))
+        register(ExperimentPreset(_n, f"Turing r = {_r:g} growing 50x50 -> 100x100, {_what}",
+                                  "leopard paper Fig. 5", _fig5(_r, _ua, _lb, _dt, _v)))
 
 
 # ---- the thesis's saturated patterns (Bard form) -----------------------------------------
-@_register("giraffe", "Bard form, both species saturated at 6.3: reticulated giraffe patches", "thesis Fig. 7.13")
+@registered(ExperimentPreset, "giraffe", "Bard form, both species saturated at 6.3: reticulated giraffe patches", "thesis Fig. 7.13")
 def _giraffe(quick):
     model = Bard(alpha=16.0, beta=12.0, sp=0.005, da=3 * 0.04, db=3 * 0.01, upper=(6.3, 6.3))
     shape, steps = ((48, 48), 8000) if quick else ((100, 100), 38000)
@@ -142,7 +106,7 @@ def _giraffe(quick):
     )
 
 
-@_register("nudibranch", "Bard form, U saturated at 5.2: labyrinth with rare stable dots", "thesis Fig. 7.15")
+@registered(ExperimentPreset, "nudibranch", "Bard form, U saturated at 5.2: labyrinth with rare stable dots", "thesis Fig. 7.15")
 def _nudibranch(quick):
     model = Bard(alpha=16.0, beta=12.0, sp=0.02, da=3 * 0.08, db=3 * 0.01, upper=(5.2, INF))
     shape = (48, 48) if quick else (100, 100)
@@ -179,7 +143,7 @@ def _gray_scott(name, F, k):
 
 
 for _n, (_F, _k, _what) in GRAY_SCOTT.items():
-    PRESETS[_n] = Preset(_n, f"Gray-Scott, {_what}", "Pearson 1993 (classic)", _gray_scott(_n, _F, _k))
+    register(ExperimentPreset(_n, f"Gray-Scott, {_what}", "Pearson 1993 (classic)", _gray_scott(_n, _F, _k)))
 
 
 # ---- the animals of the leopard paper (growing domains) -----------------------------------
@@ -200,7 +164,7 @@ def _whipray_kind(name, start, grow, dt, spots, grown, spots_steps, description,
     )
 
 
-@_register("whipray", "reticulate whipray: spots (r=30) grown at r=8 into a reticulation", "leopard paper Fig. 9")
+@registered(ExperimentPreset, "whipray", "reticulate whipray: spots (r=30) grown at r=8 into a reticulation", "leopard paper Fig. 9")
 def _whipray(quick):
     start, grow = ((50, 50), 50) if quick else ((100, 100), 100)
     return _whipray_kind(
@@ -210,7 +174,7 @@ def _whipray(quick):
         "leopard paper Fig. 9")
 
 
-@_register("honeycomb-whipray", "honeycomb whipray: spots (r=30, s=6) grown into polygons", "leopard paper Fig. 10")
+@registered(ExperimentPreset, "honeycomb-whipray", "honeycomb whipray: spots (r=30, s=6) grown into polygons", "leopard paper Fig. 10")
 def _honeycomb(quick):
     start, grow = ((50, 50), 10) if quick else ((100, 100), 20)
     return _whipray_kind(
@@ -220,7 +184,7 @@ def _honeycomb(quick):
         "leopard paper Fig. 10")
 
 
-@_register("frog", "poison dart frog: stripes on a 50x10 strip grown to 125x85 (no-flux)", "leopard paper Fig. 11")
+@registered(ExperimentPreset, "frog", "poison dart frog: stripes on a 50x10 strip grown to 125x85 (no-flux)", "leopard paper Fig. 11")
 def _frog(quick):
     start, grow = ((50, 10), 75) if quick else ((50, 10), 75)
     dt = 0.01
@@ -242,7 +206,7 @@ def _frog(quick):
     )
 
 
-@_register("squirrel", "thirteen-lined ground squirrel: production on a row during growth", "leopard paper Fig. 12")
+@registered(ExperimentPreset, "squirrel", "thirteen-lined ground squirrel: production on a row during growth", "leopard paper Fig. 12")
 def _squirrel(quick):
     start, grow = ((50, 50), 40) if quick else ((100, 100), 80)
     dt = 0.004
@@ -268,7 +232,7 @@ def leopard_row_weights(n: int = 30) -> np.ndarray:
     return w
 
 
-@_register("leopard", "leopard rosettes: definition, development and maintenance phases", "leopard paper Figs. 13-17")
+@registered(ExperimentPreset, "leopard", "leopard rosettes: definition, development and maintenance phases", "leopard paper Figs. 13-17")
 def _leopard(quick):
     turing = Turing(40.0, 5.0, lower=(0.0, 2.0))
     reinf = Reinforcement(threshold=5.0, width=5.0, diffusion=1.0)
@@ -325,22 +289,22 @@ def _development(quick, row):
 
 
 for _row in ("none", "standard", "saturated"):
-    PRESETS[f"development-{_row}"] = Preset(
-        f"development-{_row}", f"Fig. 6 row: growth with {_row} reaction-diffusion", "leopard paper Fig. 6",
-        lambda quick, _row=_row: _development(quick, _row))
-PRESETS["development"] = Preset(
+    register(ExperimentPreset(f"development-{_row}", f"Fig. 6 row: growth with {_row} reaction-diffusion",
+                              "leopard paper Fig. 6", lambda quick, _row=_row: _development(quick, _row)))
+register(ExperimentPreset(
     "development", "pattern development during growth: no RD, standard RD, saturated RD (three rows)",
-    "leopard paper Fig. 6", members=("development-none", "development-standard", "development-saturated"))
-PRESETS["fig4"] = Preset("fig4", "the 15 static patterns of Fig. 4 (rows: B >= 0, Ua, Lb; columns: r)",
-                         "leopard paper Fig. 4",
-                         members=tuple(_fig4_name(r, v) for v in ("std", "ua", "lb") for r in FIG4_RATIOS))
-PRESETS["fig5"] = Preset("fig5", "the 15 growing patterns of Fig. 5 (rows: B >= 0, Ua, Lb; columns: r)",
-                         "leopard paper Fig. 5",
-                         members=tuple(_fig4_name(r, v).replace("fig4", "fig5") for v in ("std", "ua", "lb")
-                                       for r in FIG4_RATIOS))
+    "leopard paper Fig. 6", members=("development-none", "development-standard", "development-saturated"),
+    row_labels=("none", "standard", "saturated"), snapshots=True))
+FIG4_ROWS = ("B >= 0", "Ua", "Lb")  # the rows of Figs. 4 and 5: variants std, ua, lb
+for _fig, _what in (("fig4", "static"), ("fig5", "growing")):
+    register(ExperimentPreset(
+        _fig, f"the 15 {_what} patterns of Fig. {_fig[-1]} (rows: B >= 0, Ua, Lb; columns: r)",
+        f"leopard paper Fig. {_fig[-1]}",
+        members=tuple(_fig4_name(r, v).replace("fig4", _fig) for v in ("std", "ua", "lb") for r in FIG4_RATIOS),
+        row_labels=FIG4_ROWS, col_labels=tuple(f"r = {r:g}" for r in FIG4_RATIOS)))
 
 
-@_register("reinforcement-growth", "reinforcement keeps a pattern's shape while the domain doubles",
+@registered(ExperimentPreset, "reinforcement-growth", "reinforcement keeps a pattern's shape while the domain doubles",
            "leopard paper Fig. 8")
 def _reinforcement_growth(quick):
     dt = 0.004

@@ -1,0 +1,45 @@
+"""The `morphojax` command line: parses arguments and calls the library.
+
+    morphojax presets | run NAME | resume CKPT | render RESULT    (`_run`)
+    morphojax sweep ...                                          (`_sweep`)
+    morphojax ca ...                                             (`_ca`)
+
+Other packages add subcommands through the entry-point group `morphojax.commands`: each
+entry is a function `register(subparsers)` that adds its parser and sets `func` (e.g.
+`fitting` adds `morphojax fit`). The core never imports them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from importlib.metadata import entry_points
+
+from . import _ca, _run, _sweep
+
+ENTRY_POINT_GROUP = "morphojax.commands"
+CORE_COMMANDS = (_run.register, _sweep.register, _ca.register)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of every subcommand: the core's, then those registered by other packages."""
+    parser = argparse.ArgumentParser(prog="morphojax", description="Differentiable pattern formation in JAX.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for register in CORE_COMMANDS:
+        register(sub)
+    for entry in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        entry.load()(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    """Run the command line `argv` (default: `sys.argv[1:]`); returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ValueError as err:  # bad input: a clear message, no traceback
+        print(f"morphojax {args.command}: error: {err}", file=sys.stderr)
+        return 2
+
+
+__all__ = ["build_parser", "main"]

@@ -1,0 +1,221 @@
+"""`morphojax presets | run | resume | render`: the presets and the runs of experiments.
+
+    morphojax presets                         list the presets
+    morphojax run NAME [--out F.png] [--seed N] [--quick] [--frames]
+    morphojax resume CHECKPOINT.npz [--out F.png]
+    morphojax render RESULT.npz [--species b] [--cmap inferno] --out F.png
+
+Every reaction-diffusion run writes its image and an `.npz` (final species cropped to the
+active lattice, plus JSON metadata with every parameter, the seed and the step counter), so
+it can be reproduced (`--seed`) or resumed (`morphojax resume`). Automaton presets write
+their own files (see `morphojax.presets`).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import morphojax as mj
+from morphojax._render import png_path  # the one place a picture's path gets its .png
+
+TABLE_WIDTH = 100  # `morphojax presets` fits a terminal this wide (or the terminal, if narrower)
+FIGURE_WIDTH = 24  # the figure column wraps beyond this
+
+
+def register(sub) -> None:
+    """Add `presets`, `run`, `resume` and `render` to an argparse subparsers object."""
+    p = sub.add_parser("presets", help="list the presets")
+    p.set_defaults(func=_cmd_presets)
+
+    p = sub.add_parser("run", help="run a preset and write its image and .npz")
+    p.add_argument("name", help="preset name (see `morphojax presets`)")
+    p.add_argument("--out", type=Path, default=None, help="output PNG (default NAME.png); the .npz goes next to it")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same result)")
+    p.add_argument("--quick", action="store_true", help="a reduced version that runs in seconds")
+    p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
+    p.add_argument("--scale", type=int, default=2, help="pixels per lattice cell in the PNG")
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
+                   help="write the .npz checkpoint every STEPS steps (resume with `morphojax resume`)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("resume", help="continue a run from its .npz checkpoint")
+    p.add_argument("checkpoint", type=Path)
+    p.add_argument("--out", type=Path, default=None, help="output PNG (default: the checkpoint's name)")
+    p.add_argument("--frames", action="store_true")
+    p.add_argument("--scale", type=int, default=2)
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_cmd_resume)
+
+    p = sub.add_parser("render", help="render one species of a result .npz to PNG")
+    p.add_argument("result", type=Path)
+    p.add_argument("--species", default=None, help="species name (default: the experiment's choice, else the last)")
+    p.add_argument("--cmap", default=None, help="inferno, viridis, gray, giraffe, ...")
+    p.add_argument("--scale", type=int, default=2)
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=_cmd_render)
+
+
+# ---- presets ---------------------------------------------------------------------------------
+def _cmd_presets(args):
+    width = min(TABLE_WIDTH, shutil.get_terminal_size((TABLE_WIDTH, 24)).columns)
+    print("\n".join(presets_table(mj.PRESETS.values(), width)))
+    return 0
+
+
+def presets_table(presets, width: int = TABLE_WIDTH) -> list[str]:
+    """The presets as lines no longer than `width`: one section per kind, columns name,
+    figure and description (the last two wrapped)."""
+    presets = list(presets)
+    name_w = max(len(p.name) for p in presets)
+    fig_w = min(FIGURE_WIDTH, max(len(p.figure) for p in presets))
+    desc_w = max(20, width - name_w - fig_w - 4)
+    lines = []
+    for kind in dict.fromkeys(p.kind for p in presets):
+        if lines:
+            lines.append("")
+        lines += [f"{kind} presets", f"{'NAME':<{name_w}}  {'FIGURE':<{fig_w}}  DESCRIPTION"]
+        for p in presets:
+            if p.kind != kind:
+                continue
+            figure = textwrap.wrap(p.figure, fig_w) or [""]
+            description = textwrap.wrap(p.description, desc_w) or [""]
+            for k in range(max(len(figure), len(description))):
+                name = p.name if k == 0 else ""
+                fig = figure[k] if k < len(figure) else ""
+                desc = description[k] if k < len(description) else ""
+                lines.append(f"{name:<{name_w}}  {fig:<{fig_w}}  {desc}".rstrip())
+    return lines
+
+
+# ---- run: dispatch on the preset's kind ------------------------------------------------------
+def _cmd_run(args):
+    if args.name not in mj.PRESETS:
+        raise SystemExit(f"morphojax run: unknown preset {args.name!r}; choose from: {', '.join(mj.PRESETS)}")
+    item = mj.PRESETS[args.name]
+    out = _picture_path(args.out if args.out is not None else f"{args.name}.png")
+    return RUNNERS[item.kind](item, args, out)
+
+
+def _run_automaton(item, args, out: Path):
+    summary = item.run(seed=args.seed, quick=args.quick, out=out, frames=args.frames)
+    print(json.dumps({"image": str(out), **summary}, default=str))
+    return 0
+
+
+def _run_reaction_diffusion(item, args, out: Path):
+    if item.members:
+        return _run_figure(item, args, out)
+    result = _run_one(item.experiment(args.quick), args, out.with_suffix(".npz"))
+    _write_outputs(result, out, args)
+    return 0
+
+
+RUNNERS = {"reaction-diffusion": _run_reaction_diffusion, "automaton": _run_automaton}  # by Preset.kind
+
+
+def _run_one(exp, args, npz: Path, resume=None):
+    t0 = time.perf_counter()
+    result = mj.run_experiment(exp, seed=getattr(args, "seed", 0), frames=args.frames,
+                               progress=not args.no_progress, checkpoint_path=npz if args.checkpoint_every else None,
+                               checkpoint_every=args.checkpoint_every, resume=resume)
+    result.metadata["run"]["seconds"] = time.perf_counter() - t0
+    result.metadata["run"]["quick"] = bool(getattr(args, "quick", False))
+    result.save(npz)
+    return result
+
+
+def _write_outputs(result, out: Path, args):
+    img = mj.render_experiment(result.state, result.experiment, scale=args.scale)
+    img.save(out)
+    written = [str(out), str(out.with_suffix(".npz"))]
+    if args.frames and result.frames:
+        folder = out.with_name(out.stem + "_frames")
+        folder.mkdir(exist_ok=True)
+        tiles = []
+        for k, (label, state) in enumerate(result.frames):
+            if not _can_show(state, result.experiment):
+                continue
+            frame = mj.render_experiment(state, result.experiment, scale=args.scale)
+            frame.save(folder / f"{k:03d}_{_slug(label)}.png")
+            tiles.append((label, frame))
+        if tiles:
+            sheet = mj.montage([t for _, t in tiles], ncols=min(4, len(tiles)),
+                               title=f"{result.experiment.name}: " + " | ".join(lbl for lbl, _ in tiles[:4]) + (
+                                   " ..." if len(tiles) > 4 else ""))
+            sheet.save(folder / "frames.png")
+        written.append(str(folder))
+    size = result.state.shape
+    print(json.dumps({"preset": result.experiment.name, "written": written, "size": list(size),
+                      "steps": int(result.state.step), "seconds": round(result.metadata["run"]["seconds"], 2)}))
+
+
+def _picture_path(path) -> Path:
+    """`path` ending in .png, its folder created."""
+    out = png_path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _can_show(state, exp) -> bool:
+    """Whether a snapshot holds the species the experiment shows."""
+    if exp.show == "melanin":
+        return "b" in state.names and "c" in state.names
+    return exp.show in state.names
+
+
+def _slug(text: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in text).strip("_")
+
+
+def _run_figure(item, args, out: Path):
+    """A figure of several experiments: one row per member; its columns are the member's
+    snapshots (`item.snapshots`) or, otherwise, one tile per member, `len(col_labels)` to a row."""
+    rows = []
+    args.frames = True if item.snapshots else args.frames
+    for member in item.members:
+        exp = mj.PRESETS[member].experiment(args.quick)
+        result = _run_one(exp, args, out.with_name(f"{out.stem}_{member}.npz"))
+        shots = [s for _, s in result.frames if _can_show(s, exp)] if item.snapshots else []
+        rows.append([mj.render_experiment(s, exp, scale=args.scale) for s in shots]
+                    or [mj.render_experiment(result.state, exp, scale=args.scale)])
+    ncols = max(len(r) for r in rows)
+    images = [tile for r in rows for tile in r + [r[-1]] * (ncols - len(r))]
+    if item.col_labels:
+        ncols = len(item.col_labels)
+    row_labels = item.row_labels or [m.split("-")[-1] for m in item.members]
+    mj.montage(images, ncols, row_labels=list(row_labels), col_labels=list(item.col_labels or []) or None,
+               title=f"{item.name}: {item.figure}").save(out)
+    print(json.dumps({"preset": item.name, "written": [str(out)], "members": list(item.members)}))
+    return 0
+
+
+# ---- resume and render -----------------------------------------------------------------------
+def _cmd_resume(args):
+    state, meta = mj.load_npz(args.checkpoint)
+    exp = mj.load_experiment(meta)
+    run = meta.get("run", {})
+    if int(run.get("phase", 0)) >= len(exp.phases):
+        print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
+    out = _picture_path(args.out if args.out is not None else args.checkpoint)
+    args.seed = int(run["seed"]) if run.get("seed") is not None else 0  # a key-started run resumes with its key
+    result = _run_one(exp, args, out.with_suffix(".npz"), resume=(state, meta))
+    _write_outputs(result, out, args)
+    return 0
+
+
+def _cmd_render(args):
+    state, meta = mj.load_npz(args.result)
+    out = _picture_path(args.out)
+    if args.species is None and args.cmap is None and "experiment" in meta:
+        mj.render_experiment(state, mj.load_experiment(meta), scale=args.scale).save(out)
+        return 0
+    species = args.species if args.species is not None else state.names[-1]
+    mj.to_image(state.array(species), cmap=args.cmap or "inferno", scale=args.scale).save(out)
+    return 0

@@ -1,0 +1,36 @@
+"""Presets: every named run of the papers' figures, of every kind, in one registry.
+
+    mj.PRESETS["leopard"].figure                 # "leopard paper Figs. 13-17"
+    mj.run_experiment(mj.preset("leopard", quick=True))
+    mj.PRESETS["young-fig8"].run(seed=0, quick=True, out="young.png")
+
+`PRESETS` maps each name to its `Preset` (its `kind`, the figure it reproduces and its
+builder); `morphojax presets` lists them and `morphojax run NAME` runs one. The registry is
+`_registry`; the reaction-diffusion experiments are `_experiments`, the cellular automata
+`_automata`.
+"""
+
+from ._registry import PRESETS, AutomatonPreset, ExperimentPreset, Preset, of_kind, preset, register, registered
+from ._experiments import FIG4_RATIOS, leopard_row_weights
+from . import _automata  # noqa: F401  (registers the automaton presets)
+from ._automaton_outputs import run_automaton, run_life_like
+
+REACTION_DIFFUSION_PRESETS = of_kind(ExperimentPreset.kind)  # snapshots of PRESETS by kind
+AUTOMATON_PRESETS = of_kind(AutomatonPreset.kind)
+
+__all__ = [
+    "AUTOMATON_PRESETS",
+    "AutomatonPreset",
+    "ExperimentPreset",
+    "FIG4_RATIOS",
+    "leopard_row_weights",
+    "of_kind",
+    "preset",
+    "Preset",
+    "PRESETS",
+    "REACTION_DIFFUSION_PRESETS",
+    "register",
+    "registered",
+    "run_automaton",
+    "run_life_like",
+]

@@ -1,0 +1,192 @@
+"""Cellular-automaton presets: Young's automaton (paper 003), K species in 3D (paper 002)
+and life-like rules; `morphojax run young-fig8` or `PRESETS["young-fig8"].run()`.
+
+Every run writes its PNG `out`, `out.npz` with the final cells and a JSON `metadata` entry
+holding every parameter (automaton, lattice, initial condition, seed, steps), meshes per
+species for 3D lattices and, with `frames=True`, the snapshots (see `_automaton_outputs`).
+The same seed gives the same output. Each preset has a `quick` variant that runs in
+seconds: smaller lattices, same rules.
+"""
+
+from __future__ import annotations
+
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from PIL import Image
+
+import morphojax as mj
+from ._automaton_outputs import (automaton_stats, frames_outputs, line_chart, run_automaton, save_cells_npz,
+                                 timed_run)
+from ._registry import AutomatonPreset, register, registered
+
+
+def _automaton(name, description, figure):
+    """Decorator: register the decorated runner as an automaton preset."""
+    return registered(AutomatonPreset, name, description, figure)
+
+
+# ---- Young's 2D automaton (paper 003) ----------------------------------------------------
+YOUNG_R1, YOUNG_R2, YOUNG_W1 = 2.30, 6.01, 1.0
+FIG8_W2 = (-0.20, -0.24, -0.28, -0.32, -0.36, -0.40)  # stripes -> spots
+FIG8_STEPS = 30  # paper 003: "each simulation is run for 30 time-steps"
+
+
+@_automaton("young-fig8", "Young's automaton, r1 = 2.30, r2 = 6.01, w1 = 1, w2 from -0.20 to -0.40: stripes to spots",
+            "paper 003 Fig. 8 (Young 1984 Fig. 6)")
+def _young_fig8(seed, quick, out, frames):
+    size = 100 if quick else 200
+    # one common denominator so the models stack into one vmapped run
+    cas = [mj.YoungCA([(YOUNG_R1, YOUNG_R2, YOUNG_W1, w)], denominator=25) for w in FIG8_W2]
+    stacked = jax.tree.map(lambda *x: jnp.stack(x), *cas)
+    cells0 = mj.random_cells(jax.random.key(seed), (size, size), 1, mj.YOUNG_P)
+    save_every = 5 if frames else None
+    t0 = time.perf_counter()
+    result = eqx.filter_vmap(lambda m: m.run(cells0, FIG8_STEPS, save_every=save_every, history=True))(stacked)
+    jax.block_until_ready(result.cells)
+    seconds = time.perf_counter() - t0
+    finals = np.asarray(result.cells)
+    scale = max(1, 200 // size)
+    mj.montage([mj.cells_image(c, 1, scale) for c in finals], len(FIG8_W2),
+               col_labels=[f"w2 = {w:g}" for w in FIG8_W2],
+               title=f"Young, r1 = {YOUNG_R1}, r2 = {YOUNG_R2}, w1 = 1, p = {mj.YOUNG_P}, t = {FIG8_STEPS}").save(out)
+    per = [{"w2": w, **automaton_stats(c, 1)} for w, c in zip(FIG8_W2, finals)]
+    metadata = {"automaton": "YoungCA", "params": [ca.to_dict() for ca in cas], "lattice": [size, size],
+                "seed": seed, "initial": {"p": mj.YOUNG_P}, "steps": FIG8_STEPS, "w2": list(FIG8_W2), "runs": per}
+    files = [str(out), str(save_cells_npz(out, finals, metadata, changes=np.asarray(result.changes)))]
+    if frames:
+        strip = [mj.cells_image(f, 1, scale) for f in np.asarray(result.frames).reshape(-1, size, size)]
+        n_cols = np.asarray(result.frames).shape[1]
+        frames_png = out.with_name(out.stem + "_frames.png")
+        mj.montage(strip, n_cols, row_labels=[f"w2 = {w:g}" for w in FIG8_W2],
+                   col_labels=[f"t = {t}" for t in np.asarray(result.frame_steps)[0]]).save(frames_png)
+        frames_npz = out.with_name(out.stem + "_frames.npz")
+        np.savez_compressed(frames_npz, frames=np.asarray(result.frames), steps=np.asarray(result.frame_steps)[0])
+        files += [str(frames_png), str(frames_npz)]
+    return {"steps": FIG8_STEPS, "lattice": [size, size], "runs": per, "seconds_run": round(seconds, 3), "files": files}
+
+
+def _young_single(w2):
+    def runner(seed, quick, out, frames):
+        ca = mj.YoungCA([(YOUNG_R1, YOUNG_R2, YOUNG_W1, w2)])
+        size = 128 if quick else 256
+        return run_automaton(ca, (size, size), p=mj.YOUNG_P, steps=FIG8_STEPS, stop=False, seed=seed, out=out, frames=frames)
+
+    return runner
+
+
+register(AutomatonPreset("young-stripes", "Young's automaton at w2 = -0.20: labyrinthine stripes",
+                         "paper 003 Fig. 8 (left)", _young_single(-0.20)))
+register(AutomatonPreset("young-spots", "Young's automaton at w2 = -0.40: isolated spots",
+                         "paper 003 Fig. 8 (right)", _young_single(-0.40)))
+
+
+@_automaton("young-b1", "paper 003's Python code: Moore boxes Ra = 2, Ri = 5, wa = 1, wi = 0.2, self counted, 20 steps",
+            "paper 003 Fig. B1 (evolution over time)")
+def _young_b1(seed, quick, out, frames):
+    # the code sums the inhibitor over the whole box (self included): WS = Na wa - Ni wi,
+    # i.e. weight wa - wi on the inner box and -wi on the ring
+    wa, wi = 1.0, 0.2
+    ca = mj.YoungCA([(2, 5, wa - wi, -wi)], "box", include_self=True)
+    size = 100  # the code's 100 x 100 grid is already quick
+    return run_automaton(ca, (size, size), p=mj.YOUNG_P, steps=20, stop=False, seed=seed, out=out, frames=frames,
+                         extra={"code_weights": {"wa": wa, "wi": wi}})
+
+
+# ---- paper 002: 3D, K species ------------------------------------------------------------
+DUR_K2 = (3.2, 6.0, 1.0, -0.2)  # R_act, R_inh, w_act, w_inh of both species (section 4.2)
+DUR_TABLE2 = ((6.0, 10.0, 1.0, -0.3), (4.0, 7.0, 1.0, -0.3), (4.3, 8.0, 1.0, -0.22))  # species 0-2 of Table 2
+DUR_TABLE2_W3 = -0.2  # w_{3,inh} is "variable" in Table 2 / Fig. 8; species 3 is otherwise (3.2, 6, 1, .)
+
+
+@_automaton("dur-fig6", "3D, L = 100, K = 2, both species (3.2, 6, 1, -0.2), run to convergence (< 1% changed); "
+            "section 4.2: 42.86% / 42.88% / 14.26% after 20 iterations", "paper 002 Fig. 6")
+def _dur_fig6(seed, quick, out, frames):
+    ca = mj.YoungCA([DUR_K2, DUR_K2])
+    size = 40 if quick else 100
+    summary = run_automaton(ca, (size,) * 3, p=None, steps=100, stop=True, seed=seed, out=out, frames=frames)
+    summary["weighted_volume_difference"] = [round(float(v), 3) for v in np.asarray(mj.weighted_volume_difference(ca))]
+    return summary
+
+
+@_automaton("dur-fig8", "3D, L = 100, K = 4 species of Table 2 (w_3,inh = -0.2), run to convergence",
+            "paper 002 Fig. 8 / Table 2")
+def _dur_fig8(seed, quick, out, frames):
+    ca = mj.YoungCA([*DUR_TABLE2, (3.2, 6.0, 1.0, DUR_TABLE2_W3)])
+    size = 48 if quick else 100
+    summary = run_automaton(ca, (size,) * 3, p=None, steps=100, stop=True, seed=seed, out=out, frames=frames)
+    summary["weighted_volume_difference"] = [round(float(v), 3) for v in np.asarray(mj.weighted_volume_difference(ca))]
+    return summary
+
+
+FIG9_W0 = (-0.10, -0.15, -0.20, -0.25, -0.30)
+_eps0_series = jax.jit(jax.vmap(lambda cells: mj.order_parameter(cells, 2)[0]))
+
+
+@_automaton("dur-fig9", "order parameter eps_0 per iteration, K = 2, w_0,inh from -0.10 to -0.30 (identical starts)",
+            "paper 002 Fig. 9")
+def _dur_fig9(seed, quick, out, frames):
+    size, steps = (32, 20) if quick else (100, 40)
+    cells0 = mj.random_cells(jax.random.key(seed), (size,) * 3, 2)
+    series, finals, steps_run = {}, [], []
+    t0 = time.perf_counter()
+    for w0 in FIG9_W0:
+        # one denominator for the whole series (1/20: all its weights are multiples), so
+        # the compiled run is reused
+        ca = mj.YoungCA([(3.2, 6.0, 1.0, w0), DUR_K2], denominator=20)
+        result = ca.run(cells0, steps, save_every=1)
+        eps = _eps0_series(result.frames)
+        series[f"w0 = {w0:g}"] = [float(v) for v in np.asarray(eps)]
+        finals.append(np.asarray(result.cells))
+        steps_run.append(int(result.steps))
+    seconds = time.perf_counter() - t0
+    chart = line_chart(series, title=f"eps_0 per iteration, L = {size}, K = 2")
+    mids = mj.montage([mj.cells_image(c[size // 2], 2, max(1, 160 // size)) for c in finals], len(finals),
+                      col_labels=[f"w0 = {w:g}" for w in FIG9_W0])
+    canvas = Image.new("RGB", (max(chart.width, mids.width), chart.height + mids.height), "white")
+    canvas.paste(chart, (0, 0))
+    canvas.paste(mids, (0, chart.height))
+    canvas.save(out)
+    metadata = {"automaton": "YoungCA", "species_1": DUR_K2, "species_0": {"r_act": 3.2, "r_inh": 6.0, "w_act": 1.0},
+                "w0_inh": list(FIG9_W0), "lattice": [size] * 3, "seed": seed, "initial": {"p": None},
+                "steps": steps, "order_parameter_0": series}
+    files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata))]
+    return {"steps": steps_run, "lattice": [size] * 3, "order_parameter_0_final": {k: round(v[-1], 4) for k, v in series.items()},
+            "seconds_run": round(seconds, 3), "files": files}
+
+
+# ---- life-like rules ---------------------------------------------------------------------
+@_automaton("life-glider", "Conway's B3/S23: a glider moves one cell diagonally every 4 generations",
+            "Conway's Game of Life (Gardner 1970)")
+def _life_glider(seed, quick, out, frames):
+    life = mj.LifeLike("B3/S23")
+    size, gens = 16, (16 if quick else 64)  # 64 generations bring it back round the 16-torus
+    cells0 = mj.glider((size, size), at=((1 + seed) % size, (1 + seed) % size))
+    result = life.run(cells0, gens, save_every=4)
+    shown = np.asarray(result.frames)[:9]
+    mj.montage([mj.cells_image(1 - f, 1, 8) for f in shown], len(shown),
+               col_labels=[f"t={4 * i}" for i in range(len(shown))]).save(out)
+    moved = np.array_equal(np.asarray(result.cells), np.roll(np.asarray(cells0), (gens // 4, gens // 4), (0, 1)))
+    metadata = {"automaton": "LifeLike", "rule": life.rule, "lattice": [size, size], "seed": seed,
+                "initial": "glider", "steps": gens}
+    files = [str(out), str(save_cells_npz(out, result.cells, metadata, frames=np.asarray(result.frames)))]
+    return {"steps": gens, "rule": life.rule, "glider_moved_diagonally": bool(moved), "files": files}
+
+
+@_automaton("life-soup", "Conway's B3/S23 from a random 50% soup on a torus", "Conway's Game of Life (Gardner 1970)")
+def _life_soup(seed, quick, out, frames):
+    life = mj.LifeLike("B3/S23")
+    size, gens = (64, 100) if quick else (256, 500)
+    cells0 = jax.random.bernoulli(jax.random.key(seed), 0.5, (size, size)).astype(jnp.int8)
+    result, seconds = timed_run(life, cells0, gens, save_every=max(1, gens // 10) if frames else None)
+    mj.cells_image(1 - np.asarray(result.cells), 1, max(1, 512 // size)).save(out)
+    metadata = {"automaton": "LifeLike", "rule": life.rule, "lattice": [size, size], "seed": seed,
+                "initial": {"alive_probability": 0.5}, "steps": gens}
+    files = [str(out), str(save_cells_npz(out, result.cells, metadata))]
+    if frames:
+        files += frames_outputs(out, 1 - np.asarray(result.frames), result.frame_steps, 1, max(1, 256 // size))
+    return {"steps": gens, "rule": life.rule, "alive": round(float(np.mean(np.asarray(result.cells))), 4),
+            "seconds_run": round(seconds, 3), "files": files}
