@@ -38,6 +38,11 @@ class AbstractDomain(eqx.Module):
 
     @property
     @abc.abstractmethod
+    def ndim(self) -> int:
+        """Number of spatial axes of the fields on this domain (2 for a lattice)."""
+
+    @property
+    @abc.abstractmethod
     def description(self) -> str:
         """A few words naming the operator, for messages ("nine-point stencil")."""
 
@@ -115,6 +120,10 @@ class Lattice(AbstractDomain):
     @property
     def spectral_radius(self) -> float:
         return _lattice.SPECTRAL_RADIUS[self.stencil]
+
+    @property
+    def ndim(self) -> int:
+        return 2
 
     @property
     def description(self) -> str:

@@ -24,9 +24,10 @@ import numpy as np
 
 from . import _initial
 from ._checks import check_count, check_range, is_concrete
-from ._serialise import (bounds_from_data, bounds_to_data, dumps, from_jsonable, growth_from_dict, growth_to_dict,
-                         key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict, save_npz,
-                         source_from_dict, source_to_dict, to_jsonable)
+from ._domain import Lattice, as_domain
+from ._serialise import (bounds_from_data, bounds_to_data, domain_from_dict, domain_to_dict, dumps, from_jsonable,
+                         growth_from_dict, growth_to_dict, key_from_data, key_to_data, load_npz, model_from_dict,
+                         model_to_dict, save_npz, source_from_dict, source_to_dict, to_jsonable)
 from ._models import AbstractModel
 from ._simulate import simulate
 from ._state import State
@@ -95,8 +96,8 @@ class Phase:
     model: AbstractModel
     steps: int
     dt: float
-    boundary: str = "wrap"
-    stencil: str = "nine-point"
+    boundary: str | None = None
+    stencil: str | None = None
     bounds: Any = "clip"
     growth: Any = None
     sources: tuple = ()
@@ -105,6 +106,7 @@ class Phase:
     frames: Any = 0
     name: str = ""
     capacity: tuple | None = None
+    domain: Any = None
 
     def __post_init__(self):
         from ._growth import Growth, Source
@@ -120,6 +122,10 @@ class Phase:
             if not isinstance(src, Source):
                 raise ValueError(f"Phase.sources must be Source(...) objects (got {src!r})")
         object.__setattr__(self, "sources", sources)  # a single Source is accepted as (Source,)
+        object.__setattr__(self, "domain", _phase_domain(self.domain, self.stencil, self.boundary))
+        if isinstance(self.domain, Lattice):  # the shorthands stay readable as the lattice's
+            object.__setattr__(self, "stencil", self.domain.stencil)
+            object.__setattr__(self, "boundary", self.domain.boundary)
 
     def prepare(self, state: State) -> State:
         """Apply the changes that happen at the start of the phase: reallocation to
@@ -139,7 +145,8 @@ class Phase:
         """Plain-data (JSON-ready) form of the phase."""
         return to_jsonable({
             "name": self.name, "model": model_to_dict(self.model), "steps": self.steps, "dt": self.dt,
-            "boundary": self.boundary, "stencil": self.stencil, "bounds": bounds_to_data(self.bounds),
+            "boundary": self.boundary, "stencil": self.stencil, "domain": domain_to_dict(self.domain),
+            "bounds": bounds_to_data(self.bounds),
             "growth": growth_to_dict(self.growth) if self.growth is not None else None,
             "sources": [source_to_dict(s) for s in self.sources],
             "add_species": [list(p) for p in self.add_species],
@@ -153,7 +160,8 @@ class Phase:
         bounds = bounds_from_data(d.get("bounds", "clip"))
         return cls(
             model=model_from_dict(d["model"]), steps=int(d["steps"]), dt=float(d["dt"]),
-            boundary=d.get("boundary", "wrap"), stencil=d.get("stencil", "nine-point"), bounds=bounds,
+            boundary=None if d.get("domain") else d.get("boundary"), stencil=None if d.get("domain") else d.get("stencil"),
+            domain=domain_from_dict(d["domain"]) if d.get("domain") else None, bounds=bounds,
             growth=growth_from_dict(d["growth"]) if d.get("growth") else None,
             sources=tuple(source_from_dict(s) for s in d.get("sources", [])),
             add_species=tuple(tuple(p) for p in d.get("add_species", [])),
@@ -161,6 +169,22 @@ class Phase:
             frames=tuple(d["frames"]) if isinstance(d.get("frames"), list) else int(d.get("frames", 0)),
             name=d.get("name", ""), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
         )
+
+
+def _phase_domain(domain, stencil, boundary):
+    """A phase's domain from `domain` or the lattice shorthands. A phase's fields are echoed
+    by `dataclasses.replace`, so shorthands that agree with a given lattice are accepted;
+    ones that disagree are an error."""
+    if domain is None:
+        return as_domain(stencil=stencil, boundary=boundary)
+    if isinstance(domain, Lattice) and (stencil is not None or boundary is not None):
+        given = as_domain(stencil=domain.stencil if stencil is None else stencil,
+                          boundary=domain.boundary if boundary is None else boundary)
+        if given != domain:
+            raise ValueError(f"Phase: domain {domain} and the shorthands stencil={stencil!r}, boundary={boundary!r} "
+                             "disagree; give only domain=")
+        return domain
+    return as_domain(domain, stencil=stencil, boundary=boundary)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,7 +228,7 @@ class Experiment:
 # Phases and experiments are pytrees: models, growth and sources are their leaves (so an
 # experiment can be passed through jax.jit and vmapped over), the rest is static data.
 jax.tree_util.register_dataclass(
-    Phase, data_fields=["model", "growth", "sources"],
+    Phase, data_fields=["model", "growth", "sources", "domain"],
     meta_fields=["steps", "dt", "boundary", "stencil", "bounds", "add_species", "keep", "frames", "name", "capacity"])
 jax.tree_util.register_dataclass(
     Experiment, data_fields=["phases"], meta_fields=["name", "initial", "description", "figure", "show", "cmap"])
@@ -293,7 +317,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
         if phase_step == 0:
             state = phase.prepare(state)
             origin = int(state.step) if is_concrete(state.step) else state.step
-        kwargs = dict(boundary=phase.boundary, stencil=phase.stencil, bounds=phase.bounds, growth=phase.growth,
+        kwargs = dict(domain=phase.domain, bounds=phase.bounds, growth=phase.growth,
                       sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin, progress=progress)
         marks = set(_frame_steps(phase)) if frames and phase.frames else set()
         saves = set(range(phase_step + checkpoint_every, phase.steps, checkpoint_every)) if checkpoint_every else set()
@@ -331,7 +355,13 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
 def _what_runs(data: dict) -> dict:
     """The parts of an experiment's plain data that decide its result (its initial state and
     phases, less their names and snapshot settings), normalised through JSON."""
-    phases = [{k: v for k, v in p.items() if k not in ("name", "frames")} for p in data["phases"]]
+    # a lattice is said twice (its shorthands and its domain); files written before domains
+    # existed have only the shorthands, so the shorthands decide
+    def decides(p):
+        lattice = (p.get("domain") or {}).get("type", "Lattice") == "Lattice"
+        return {k: v for k, v in p.items() if k not in ("name", "frames") and not (k == "domain" and lattice)}
+
+    phases = [decides(p) for p in data["phases"]]
     return json.loads(dumps({"initial": data["initial"], "phases": phases}))
 
 

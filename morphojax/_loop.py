@@ -80,7 +80,7 @@ def _chunk_lean(step, c: Carry, n: int, checkpoint: bool) -> Carry:
 def _crop_state(domain, c: Carry, names, t0, step0, dt, growable, dynamic: bool) -> State:
     fields = domain.interior(c.p)
     if dynamic:  # drop the ghost cells written after the active region
-        fields = jnp.where(domain.active_mask(fields.shape[-2:], c.size), fields, 0.0)
+        fields = jnp.where(domain.active_mask(fields.shape[1:], c.size), fields, 0.0)
     return State(fields, c.size, c.step, t0 + (c.step - step0) * dt, names, growable)
 
 

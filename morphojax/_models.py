@@ -100,9 +100,33 @@ class AbstractModel(eqx.Module):
         return len(self.species)
 
     # ---- parameters by name (sweeps, fitting, saving) -------------------------------
+    @abc.abstractmethod
+    def parameters(self) -> dict[str, Array]:
+        """All numeric parameters by name (the names sweeps, fits and files use)."""
+
+    @abc.abstractmethod
+    def replace(self, **changes) -> "AbstractModel":
+        """A copy with some parameters changed, by the names of `parameters()`; works with
+        traced values (inside vmap/grad)."""
+
+    def max_diffusion(self):
+        """Largest diffusion rate anywhere on the lattice (concrete values only; evaluated
+        eagerly even while tracing, so the stability check also runs inside `jax.jit`)."""
+        with jax.ensure_compile_time_eval():
+            return float(np.max(np.asarray(self.diffusion())))
+
+
+class AbstractReaction(AbstractModel):
+    """Base of the single models: every non-static field is a parameter, under its own
+    name or an alias (`ALIASES`, for a field whose natural name is taken by a method), and
+    the limits are named per species: `lower_a`, `upper_b`, ... (a = first species)."""
+
+    ALIASES: ClassVar[dict[str, str]] = {}  # public name -> field name
+
     def parameters(self) -> dict[str, Array]:
         """All numeric parameters by name; limits as `lower_a`, `upper_b`, ... (a = first species)."""
-        out = {name: getattr(self, name) for name in self._scalar_fields()}
+        public = {field: name for name, field in self.ALIASES.items()}
+        out = {public.get(name, name): getattr(self, name) for name in self._scalar_fields()}
         for kind in ("lower", "upper"):
             arr = getattr(self, kind)
             for i in range(self.n_species):
@@ -118,6 +142,7 @@ class AbstractModel(eqx.Module):
         fields = {name: getattr(self, name) for name in self._scalar_fields()}
         limits = {"lower": list(self.lower), "upper": list(self.upper)}
         for key, value in changes.items():
+            key = self.ALIASES.get(key, key)
             if key in fields:
                 fields[key] = value
             elif key in limits:
@@ -144,13 +169,8 @@ class AbstractModel(eqx.Module):
 
     @classmethod
     def _scalar_fields(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in dataclasses.fields(cls) if f.name not in ("lower", "upper") and not f.metadata.get("static"))
-
-    def max_diffusion(self):
-        """Largest diffusion rate anywhere on the lattice (concrete values only; evaluated
-        eagerly even while tracing, so the stability check also runs inside `jax.jit`)."""
-        with jax.ensure_compile_time_eval():
-            return float(np.max(np.asarray(self.diffusion())))
+        return tuple(f.name for f in dataclasses.fields(cls)
+                     if f.name not in ("lower", "upper") and not f.metadata.get("static"))
 
 
 def _as_tuple(values):
@@ -164,7 +184,7 @@ def bard_reaction(x: Array, alpha, beta, sp) -> Array:
     return jnp.stack([sp * (alpha - ab), sp * (ab - b - beta)])
 
 
-class Bard(AbstractModel):
+class Bard(AbstractReaction):
     """Bard-Lauder / Turk form of Turing's reaction (thesis eqs. 4.5-4.6):
 
         da/dt = sp (alpha - a b) + Da lap(a)
@@ -207,7 +227,7 @@ class Bard(AbstractModel):
         return _species_stack((self.da, self.db), 2, "Bard diffusion")
 
 
-class Turing(AbstractModel):
+class Turing(AbstractReaction):
     """The leopard paper's bounded Turing model (eqs. 3-4):
 
         da/dt = 16 - a b + r s lap(a)
@@ -254,7 +274,7 @@ class Turing(AbstractModel):
         return _species_stack((self.ratio * self.scale, self.scale), 2, "Turing diffusion")
 
 
-class GrayScott(AbstractModel):
+class GrayScott(AbstractReaction):
     """Gray-Scott model (Pearson 1993):
 
         du/dt = Du lap(u) - u v^2 + F (1 - u)
@@ -292,7 +312,7 @@ class GrayScott(AbstractModel):
         return _species_stack((self.du, self.dv), 2, "GrayScott diffusion")
 
 
-class Reinforcement(AbstractModel):
+class Reinforcement(AbstractReaction):
     """Single-reagent reinforcement (leopard paper eq. 6):
 
         dc/dt = gamma (t - w - c)(t - c)(t + w - c) + Dc lap(c),  gamma = 3 sqrt(3) / (2 w^2)
@@ -303,6 +323,7 @@ class Reinforcement(AbstractModel):
     """
 
     species: ClassVar[tuple[str, ...]] = ("c",)
+    ALIASES: ClassVar[dict[str, str]] = {"diffusion": "diffusion_rate"}  # `diffusion()` is the method
     threshold: Array
     width: Array
     diffusion_rate: Array
@@ -338,15 +359,6 @@ class Reinforcement(AbstractModel):
     def diffusion(self):
         return _species_stack(self.diffusion_rate, 1, "Reinforcement diffusion")
 
-    def parameters(self):
-        params = super().parameters()
-        params["diffusion"] = params.pop("diffusion_rate")
-        return params
-
-    def replace(self, **changes):
-        if "diffusion" in changes:
-            changes["diffusion_rate"] = changes.pop("diffusion")
-        return super().replace(**changes)
 
 
 class Composite(AbstractModel):

@@ -11,6 +11,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
+import tempfile
 from pathlib import Path
 
 import jax
@@ -18,6 +20,7 @@ import numpy as np
 
 from ._bounds import Barrier
 from ._checks import is_concrete
+from ._domain import AbstractDomain, Lattice
 from ._growth import Growth, Source
 from ._models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
 from ._state import State
@@ -82,6 +85,22 @@ def model_from_dict(data: dict) -> AbstractModel:
     return MODEL_TYPES[kind](**params)
 
 
+DOMAIN_TYPES = {cls.__name__: cls for cls in (Lattice,)}
+
+
+def domain_to_dict(domain: AbstractDomain) -> dict:
+    """A domain as plain data: {"type": "Lattice", "params": {...}}, its arrays as lists."""
+    params = {f.name: getattr(domain, f.name) for f in dataclasses.fields(domain)}
+    return {"type": type(domain).__name__, "params": to_jsonable(params)}
+
+
+def domain_from_dict(data: dict) -> AbstractDomain:
+    kind = data.get("type")
+    if kind not in DOMAIN_TYPES:
+        raise ValueError(f"unknown domain type {kind!r} in saved data; allowed: {', '.join(DOMAIN_TYPES)}")
+    return DOMAIN_TYPES[kind](**from_jsonable(dict(data.get("params", {}))))
+
+
 def growth_to_dict(g: Growth) -> dict:
     return to_jsonable({"rate": g.rate, "distribution": g.distribution, "row_weights": g.row_weights,
                         "col_weights": g.col_weights, "spread": g.spread, "method": g.method})
@@ -142,7 +161,27 @@ def save_npz(path, state: State, metadata: dict) -> Path:
     meta.setdefault("capacity", list(state.capacity))
     meta.setdefault("growable", bool(state.growable))
     meta.setdefault("dtype", str(state.fields.dtype))
-    np.savez_compressed(path, metadata=np.asarray(dumps(meta)), **arrays)
+    return write_npz(path, metadata=np.asarray(dumps(meta)), **arrays)
+
+
+def write_npz(path, **arrays) -> Path:
+    """`np.savez_compressed` that never leaves a half-written file: the archive goes to a
+    temporary file beside `path`, which then replaces `path` in one step, so a crash keeps
+    the last good file. Like NumPy, adds `.npz` when `path` has no such suffix."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
     return path
 
 

@@ -47,6 +47,9 @@ def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt):
             f"{type(model).__name__} evolves {model.n_species} species {model.species} but the state has "
             f"{state.n_species} ({', '.join(state.names)})"
         )
+    if state.ndim != domain.ndim:
+        raise ValueError(f"the domain ({domain.description}) needs fields with {domain.ndim} spatial axes; the state "
+                         f"has {state.ndim} (capacity {state.capacity})")
     check_finite(dt, "dt")
     check_range(dt, "dt", low=0.0, low_open=True)
     cap = state.capacity
@@ -64,7 +67,7 @@ def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt):
     if check_dt and is_concrete(model, dt):
         domain.check_dt(dt, model.max_diffusion())
     if isinstance(cfg.bounds, Barrier) and is_concrete(state.fields, model):
-        x = np.asarray(state.fields)[:, : state.shape[0], : state.shape[1]]
+        x = np.stack(state.arrays())
         lo = np.asarray(per_species(model.lower))
         hi = np.asarray(per_species(model.upper))
         if (np.asarray(model.lower) < 0).any():

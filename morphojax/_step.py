@@ -105,7 +105,7 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
         for j, src in enumerate(sources):
             amount = src.production(c.size, source_key(key, c.step, j), x[src.index])
             production[src.index] = production[src.index] + amount if src.index in production else amount
-        mask = domain.active_mask(x.shape[-2:], c.size) if cfg.dynamic else None
+        mask = domain.active_mask(x.shape[1:], c.size) if cfg.dynamic else None
         terms = domain.diffusion(c.p, per_species(model.diffusion()))
         new = update(model, x, terms, production, mask)
         p = domain.write(c.p, new, c.size, cfg.dynamic)

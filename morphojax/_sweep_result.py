@@ -24,7 +24,7 @@ from ._initial import initial_state
 from ._models import AbstractModel
 from ._render import png_path, tile_montage
 from ._serialise import (bounds_from_data, dumps, growth_from_dict, key_from_data, model_from_dict, read_npz,
-                         source_from_dict)
+                         source_from_dict, write_npz)
 from ._state import State
 from ._sweep_members import DT, label, member_model
 
@@ -210,8 +210,7 @@ class SweepResult:
         out |= {f"value_{n}": v.reshape(self.shape) for n, v in self.values.items()}
         out |= {"size": self.size.reshape(self.shape + (2,)), "blowup_step": self.blowup_step.reshape(self.shape),
                 "overflow": self.overflow.reshape(self.shape), "change": self.change.reshape(self.shape)}
-        np.savez_compressed(path, metadata=np.asarray(dumps(self._metadata() | {"table": self.table})), **out)
-        return path
+        return write_npz(path, metadata=np.asarray(dumps(self._metadata() | {"table": self.table})), **out)
 
     def _metadata(self) -> dict:
         return {"kind": "morphojax.sweep", "names": list(self.names),

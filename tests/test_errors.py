@@ -83,8 +83,8 @@ def test_run_experiment_argument_errors(tmp_path):
 def test_state_errors():
     with pytest.raises(ValueError, match="same shape"):
         mj.State.from_arrays([np.ones((4, 4)), np.ones((4, 5))])
-    with pytest.raises(ValueError, match="2D array"):
-        mj.State.from_arrays([np.ones((4, 4, 2))])
+    with pytest.raises(ValueError, match="1D, 2D or 3D array"):
+        mj.State.from_arrays([np.ones((4, 4, 2, 2))])
     with pytest.raises(ValueError, match="NaN or infinite"):
         mj.State.from_arrays([np.full((3, 3), np.nan)])
     with pytest.raises(ValueError, match="capacity"):
