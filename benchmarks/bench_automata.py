@@ -39,7 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import ca_oracle  # noqa: E402
 
-from morphojax._automata import YoungCA, random_cells, volume_fractions  # noqa: E402
+from morphojax.automata import YoungCA, random_cells, volume_fractions  # noqa: E402
 
 
 # ---- a plain vectorised NumPy port (the "how you would write it in NumPy" baseline) -------

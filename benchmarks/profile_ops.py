@@ -26,7 +26,7 @@ import bench_growth
 
 
 def _young_3d_l30():
-    from morphojax._automata import YoungCA, random_cells
+    from morphojax.automata import YoungCA, random_cells
 
     ca = YoungCA(species=[(3.2, 6.0, 1.0, -0.2)])
     cells = random_cells(jax.random.key(0), (30, 30, 30), 1)

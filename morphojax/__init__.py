@@ -33,22 +33,30 @@ from ._descriptors import Descriptors, describe, radial_power_spectrum, relative
 from ._sweep import sweep
 from ._sweep_result import Member, SweepResult, load_sweep
 from ._parameter_map import parameter_map
-from ._automata import (
+from .automata import (
+    RULES as LIFE_RULES,
     YOUNG_P,
     AbstractAutomaton,
     AutomatonRun,
+    LifeLike,
     YoungCA,
+    cells_image,
     changed_fraction,
+    glider,
     hard_cells,
     has_converged,
     one_hot_cells,
     order_parameter,
+    parse_rule,
     random_cells,
+    slice_montage,
+    species_mesh,
     volume_fractions,
     weighted_volume_difference,
+    write_obj,
+    write_ply,
+    write_species_meshes,
 )
-from ._life import RULES as LIFE_RULES, LifeLike, glider, parse_rule
-from ._automata_io import cells_image, slice_montage, species_mesh, write_obj, write_ply, write_species_meshes
 
 from ._version import __version__
 

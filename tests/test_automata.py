@@ -13,27 +13,27 @@ import numpy as np
 import pytest
 
 import ca_oracle as oracle
-from morphojax._automata import (
+from morphojax.automata import (
+    LifeLike,
     YoungCA,
-    _jit_step,
+    cells_image,
     changed_fraction,
+    glider,
     hard_cells,
     one_hot_cells,
     order_parameter,
+    parse_rule,
     random_cells,
-    volume_fractions,
-    weighted_volume_difference,
-)
-from morphojax._automata_io import (
-    cells_image,
     read_ply,
     slice_montage,
     species_mesh,
+    volume_fractions,
+    weighted_volume_difference,
     write_obj,
     write_ply,
     write_species_meshes,
 )
-from morphojax._life import LifeLike, glider, parse_rule
+from morphojax.automata._base import jit_step as _jit_step
 
 YOUNG = (2.30, 6.01, 1.0, -0.2)
 DUR = (3.2, 6.0, 1.0, -0.2)

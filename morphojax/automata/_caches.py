@@ -13,10 +13,9 @@ same lattice, so what is computed from one serves the other:
 
 Both are bounded `functools.lru_cache`s of pure functions of their arguments. A model
 with a traced leaf is never frozen, and an exception (an invalid model or lattice) is
-not cached, so it is raised on every call. The spectra are computed eagerly from the
-thawed model's fresh host constants (`jax.ensure_compile_time_eval`), also while a jit
-traces a function that closes over the model, so the cache only ever holds concrete
-arrays, never tracers.
+not cached, so it is raised on every call. Thawed leaves and the spectra are computed
+eagerly (`jax.ensure_compile_time_eval`), also while a jit traces a function that closes
+over the model, so the caches only ever hold concrete arrays, never tracers.
 """
 
 from __future__ import annotations
@@ -51,8 +50,10 @@ def freeze(tree) -> Frozen | None:
 
 
 def thaw(frozen: Frozen):
-    """The pytree `frozen` was made from (equal leaves as JAX arrays)."""
-    leaves = [jnp.asarray(np.frombuffer(data, dtype).reshape(shape)) for dtype, shape, data in frozen.leaves]
+    """The pytree `frozen` was made from (equal leaves as concrete JAX arrays, also while
+    a jit is tracing)."""
+    with jax.ensure_compile_time_eval():
+        leaves = [jnp.asarray(np.frombuffer(data, dtype).reshape(shape)) for dtype, shape, data in frozen.leaves]
     return jax.tree_util.tree_unflatten(frozen.treedef, leaves)
 
 
