@@ -7,8 +7,7 @@
     a, b = state.arrays()
 """
 
-from ._lattice import BOUNDARIES, STENCILS
-from ._domain import AbstractDomain, Lattice, laplacian, max_stable_dt
+from .domains import BOUNDARIES, STENCILS, AbstractDomain, Lattice, laplacian, max_stable_dt
 from ._models import (
     AbstractModel,
     Bard,

@@ -20,11 +20,10 @@ from pathlib import Path
 from typing import Any
 
 import jax
-import numpy as np
 
 from . import _initial
 from ._checks import check_count, check_range, is_concrete
-from ._domain import Lattice, as_domain
+from .domains import Lattice, as_domain
 from ._serialise import (bounds_from_data, bounds_to_data, domain_from_dict, domain_to_dict, dumps, from_jsonable,
                          growth_from_dict, growth_to_dict, key_from_data, key_to_data, load_npz, model_from_dict,
                          model_to_dict, save_npz, source_from_dict, source_to_dict, to_jsonable)

@@ -20,7 +20,7 @@ import numpy as np
 
 from ._bounds import Barrier
 from ._checks import is_concrete
-from ._domain import AbstractDomain, Lattice
+from .domains import AbstractDomain, Lattice
 from ._growth import Growth, Source
 from ._models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
 from ._state import State

@@ -20,7 +20,7 @@ import numpy as np
 
 from ._bounds import Barrier, bounds_policy
 from ._checks import as_float_array, check_finite, check_range, is_concrete
-from ._domain import as_domain
+from .domains import as_domain
 from ._loop import drive
 from ._models import AbstractModel, per_species
 from ._plan import BlockLadder

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from ._bounds import Barrier
-from ._domain import AbstractDomain
+from .domains import AbstractDomain
 from ._models import AbstractModel, per_species
 
 

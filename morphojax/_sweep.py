@@ -36,14 +36,13 @@ import numpy as np
 
 from ._batch import run_batched
 from ._descriptors import SETTLE_TOL
-from ._domain import Lattice
+from .domains import Lattice
 from ._growth import Growth
 from ._initial import initial_state
 from ._models import AbstractModel
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict, to_jsonable
 from ._state import State
 from ._sweep_members import DT, GROWTH_RATE, label, member_model, sweep_members, with_growth_rate
-from ._sweep_members import _check_name, _check_values  # noqa: F401  (the sweep command checks its flags with them)
 from ._sweep_result import SweepResult, member_table, species_index
 
 

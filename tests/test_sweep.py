@@ -393,7 +393,7 @@ def test_cli_values_and_errors():
     assert list(vary) == ["ratio", "upper_a"] and len(vary["upper_a"]) == 6
     assert kw["dt"] <= mj.max_stable_dt(120.0) and kw["steps"] == int(np.ceil(100 / kw["dt"] - 1e-9))
     # the real entry point reports bad input as a one-line error with status 2
-    from morphojax import _cli
+    from morphojax import cli as _cli
 
     wired = "sweep" in _cli.build_parser()._subparsers._group_actions[0].choices
     if not wired:  # before `register` is listed in the main CLI

@@ -18,7 +18,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ._checks import check_choice
+from .._checks import check_choice
 
 BOUNDARIES = ("wrap", "no-flux")
 STENCILS = ("nine-point", "five-point")
@@ -67,9 +67,9 @@ def repad(p, x, size, boundary: str):
     updates `p`'s buffer in place: one copy of the interior plus four lines per step, no
     padded copy of the whole array. The ghost rows are written from column 1 on; their end
     cells (the corners) come with the ghost columns, written last. Every line is computed
-    from `x` alone, so XLA fuses it into its own write: lines that fed other lines (corners
-    cut from the ghost rows) were separate small ops, which XLA:CPU's cost model split
-    across threads at ~15 us each (~20% of a growing step; now ~2-5 us a line).
+    from `x` alone, so XLA fuses it into its own write (a line that fed another line would
+    be a separate small op, which XLA:CPU splits across threads at a cost far above its
+    work; see benchmarks/results/bench_growth.md).
     Cells beyond the active region are left as they are (the ghost lines after the last
     active row and column lie there); the stepper zeroes them with its mask.
     """
