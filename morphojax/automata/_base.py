@@ -18,7 +18,7 @@ import numpy as np
 from jax import Array
 
 from .._checks import check_count, check_range, is_concrete
-from ._loop import AutomatonRun, Codec, identity_codec, iterate
+from ._loop import AutomatonRun, Codec, iterate
 
 
 def call(obj, name: str, *args):
@@ -31,12 +31,13 @@ def call(obj, name: str, *args):
 class AbstractAutomaton(eqx.Module):
     """A synchronous cellular automaton on a periodic integer lattice of any dimension.
 
-    Subclasses provide `n_states`, `_plan(shape)` (static, hashable configuration worked
-    out from concrete parameters before compiling) and `_stepper(plan, shape)` (called
-    inside the compiled function once per run, so precomputation such as kernel spectra
-    happens once, and returning the one-step function; given `_precomputed(plan, shape)`
-    it uses those arrays instead). The step works on the form of the lattice that
-    `_codec(plan, shape, dtype)` gives (by default the integer cells).
+    Subclasses (final, in the equinox pattern) provide `n_states`, `_plan(shape)` (static,
+    hashable configuration worked out from concrete parameters before compiling),
+    `_stepper(plan, shape)` (called inside the compiled function once per run, so
+    precomputation such as kernel spectra happens once, and returning the one-step
+    function; given `_precomputed(plan, shape)` it uses those arrays instead) and
+    `_codec(plan, shape, dtype)`, the form of the lattice the step works on
+    (`identity_codec`: the integer cells).
     """
 
     @property
@@ -52,14 +53,15 @@ class AbstractAutomaton(eqx.Module):
     def _stepper(self, plan, shape: tuple[int, ...], pre=None) -> Callable[[Array], Array]:
         ...
 
+    @abc.abstractmethod
     def _codec(self, plan, shape, dtype) -> Codec:
-        return identity_codec(dtype)
+        """How the loop carries the lattice (`identity_codec(dtype)`: as the cells)."""
 
+    @abc.abstractmethod
     def _precomputed(self, plan, shape):
         """Arrays the step needs that depend only on concrete parameters and the lattice
         (kernel spectra), computed once and reused across calls; None: `_stepper`
-        computes them inside the compiled function (traced parameters)."""
-        return None
+        computes them inside the compiled function (or needs none)."""
 
     def _check_cells(self, cells) -> Array:
         name = f"{type(self).__name__} cells"

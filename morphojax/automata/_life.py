@@ -17,6 +17,7 @@ import numpy as np
 from jax import Array
 
 from ._base import AbstractAutomaton
+from ._loop import Codec, identity_codec
 
 RULES = {
     "life": "B3/S23",
@@ -82,6 +83,12 @@ class LifeLike(AbstractAutomaton):
                 f"(got {max(named)})"
             )
         return None
+
+    def _codec(self, plan, shape, dtype) -> Codec:
+        return identity_codec(dtype)
+
+    def _precomputed(self, plan, shape):
+        return None  # the step needs no arrays beyond the rule's tables
 
     def neighbours(self, cells) -> Array:
         """Live Moore neighbours of every cell (periodic), exact integers."""
