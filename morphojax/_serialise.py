@@ -1,5 +1,8 @@
 """The one serialiser: every object to and from plain data (JSON), and the `.npz` files.
 
+Models, domains, bounds, growth, sources, keys, initial states, phases, experiments and
+automata; the classes' own `to_dict`/`from_dict` methods call these functions.
+
 Every result morphojax writes carries what is needed to reproduce or resume it: the
 species arrays (cropped to the active lattice) plus a JSON `metadata` entry with the
 model parameters, the run configuration, the key/seed and the step counter.
@@ -130,6 +133,85 @@ def bounds_to_data(bounds):
 
 def bounds_from_data(data):
     return Barrier(int(data["barrier"])) if isinstance(data, dict) else data
+
+
+def initial_to_dict(initial) -> dict:
+    return to_jsonable(dataclasses.asdict(initial))
+
+
+def initial_from_dict(d: dict):
+    from ._experiment import Initial
+
+    d = from_jsonable(dict(d))
+    return Initial(kind=d["kind"], shape=tuple(d["shape"]),
+                   capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+                   params=tuple(tuple(p) if isinstance(p, list) else p for p in d.get("params", ())),
+                   names=tuple(d["names"]) if d.get("names") else None)
+
+
+def phase_to_dict(phase) -> dict:
+    """A phase with its model, domain, growth and sources; a lattice is also written as its
+    `boundary`/`stencil` shorthands, which files from before domains existed hold alone."""
+    return to_jsonable({
+        "name": phase.name, "model": model_to_dict(phase.model), "steps": phase.steps, "dt": phase.dt,
+        "boundary": phase.boundary, "stencil": phase.stencil, "domain": domain_to_dict(phase.domain),
+        "bounds": bounds_to_data(phase.bounds),
+        "growth": growth_to_dict(phase.growth) if phase.growth is not None else None,
+        "sources": [source_to_dict(s) for s in phase.sources],
+        "add_species": [list(p) for p in phase.add_species],
+        "keep": list(phase.keep) if phase.keep is not None else None, "frames": phase.frames,
+        "capacity": list(phase.capacity) if phase.capacity is not None else None,
+    })
+
+
+def phase_from_dict(d: dict):
+    from ._experiment import Phase
+
+    d = from_jsonable(dict(d))
+    domain = domain_from_dict(d["domain"]) if d.get("domain") else None
+    return Phase(
+        model=model_from_dict(d["model"]), steps=int(d["steps"]), dt=float(d["dt"]),
+        boundary=None if domain else d.get("boundary"), stencil=None if domain else d.get("stencil"),
+        domain=domain, bounds=bounds_from_data(d.get("bounds", "clip")),
+        growth=growth_from_dict(d["growth"]) if d.get("growth") else None,
+        sources=tuple(source_from_dict(s) for s in d.get("sources", [])),
+        add_species=tuple(tuple(p) for p in d.get("add_species", [])),
+        keep=tuple(d["keep"]) if d.get("keep") is not None else None,
+        frames=tuple(d["frames"]) if isinstance(d.get("frames"), list) else int(d.get("frames", 0)),
+        name=d.get("name", ""), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+    )
+
+
+def experiment_to_dict(experiment) -> dict:
+    cmap = experiment.cmap if isinstance(experiment.cmap, str) else [list(s) for s in experiment.cmap.stops]
+    return {"name": experiment.name, "description": experiment.description, "figure": experiment.figure,
+            "show": experiment.show, "cmap": to_jsonable(cmap), "initial": initial_to_dict(experiment.initial),
+            "phases": [phase_to_dict(p) for p in experiment.phases]}
+
+
+def experiment_from_dict(d: dict):
+    from ._experiment import Experiment
+    from ._render import Gradient
+
+    cmap = d.get("cmap", "inferno")
+    if isinstance(cmap, list):
+        cmap = Gradient([(p, tuple(c)) for p, c in cmap])
+    return Experiment(name=d["name"], initial=initial_from_dict(d["initial"]),
+                      phases=tuple(phase_from_dict(p) for p in d["phases"]), description=d.get("description", ""),
+                      figure=d.get("figure", ""), show=d.get("show", "b"), cmap=cmap)
+
+
+def automaton_to_dict(automaton) -> dict:
+    """A cellular automaton as the keyword arguments that rebuild it: `type(ca)(**data)`."""
+    from .automata import LifeLike, YoungCA
+
+    if isinstance(automaton, YoungCA):
+        return {"species": [list(s) for s in automaton.species], "neighbourhood": automaton.neighbourhood,
+                "include_self": automaton.include_self, "denominator": int(automaton.denominator),
+                "method": automaton.method}
+    if isinstance(automaton, LifeLike):
+        return {"rule": automaton.rule}
+    raise ValueError(f"no plain-data form for automaton {type(automaton).__name__}")
 
 
 def key_to_data(key):

@@ -210,8 +210,9 @@ class YoungCA(AbstractAutomaton):
 
     def to_dict(self) -> dict:
         """Plain data to rebuild the model: `YoungCA(**ca.to_dict())`."""
-        return {"species": [list(s) for s in self.species], "neighbourhood": self.neighbourhood,
-                "include_self": self.include_self, "denominator": int(self.denominator), "method": self.method}
+        from .._serialise import automaton_to_dict
+
+        return automaton_to_dict(self)
 
     def _thresholds(self) -> tuple:
         """((T_act, T_inh), ...) per species: the radii as integer distance thresholds."""
