@@ -8,7 +8,7 @@
 """
 
 from .domains import BOUNDARIES, STENCILS, AbstractDomain, Lattice, laplacian, max_stable_dt
-from ._models import (
+from .models import (
     AbstractModel,
     Bard,
     Composite,

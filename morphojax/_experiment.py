@@ -26,7 +26,7 @@ from ._checks import check_count, check_range, is_concrete
 from .domains import Lattice, as_domain
 from . import _serialise
 from ._serialise import dumps, key_from_data, key_to_data, load_npz, save_npz
-from ._models import AbstractModel
+from .models import AbstractModel
 from ._simulate import simulate
 from ._state import State
 from ._version import __version__

@@ -89,7 +89,7 @@ def initial_state(model, key, shape, capacity=None) -> State:
 
     Reinforcement starts uniform in [t - w, t + w); composites stack their parts' starts.
     """
-    from ._models import Bard, Composite, GrayScott, Reinforcement, Turing
+    from .models import Bard, Composite, GrayScott, Reinforcement, Turing
 
     if isinstance(model, Turing):
         return paper_state(key, shape, capacity)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import default_float
-from ._models import AbstractModel
+from .models import AbstractModel
 from ._sweep_members import _check_values
 
 

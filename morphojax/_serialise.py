@@ -25,7 +25,7 @@ from ._bounds import Barrier
 from ._checks import is_concrete
 from .domains import AbstractDomain, Lattice
 from ._growth import Growth, Source
-from ._models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
+from .models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
 from ._state import State
 
 MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement)}

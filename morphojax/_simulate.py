@@ -22,7 +22,7 @@ from ._bounds import Barrier, bounds_policy
 from ._checks import as_float_array, check_finite, check_range, is_concrete
 from .domains import as_domain
 from ._loop import drive
-from ._models import AbstractModel, per_species
+from .models import AbstractModel, per_species
 from ._plan import BlockLadder
 from ._state import State
 from ._status import Run, SimulationError

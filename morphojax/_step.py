@@ -22,7 +22,7 @@ from jax import Array
 
 from ._bounds import Barrier
 from .domains import AbstractDomain
-from ._models import AbstractModel, per_species
+from .models import AbstractModel, per_species
 
 
 class Carry(NamedTuple):

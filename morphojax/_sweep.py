@@ -39,7 +39,7 @@ from ._descriptors import SETTLE_TOL
 from .domains import Lattice
 from ._growth import Growth
 from ._initial import initial_state
-from ._models import AbstractModel
+from .models import AbstractModel
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict, to_jsonable
 from ._state import State
 from ._sweep_members import DT, GROWTH_RATE, label, member_model, sweep_members, with_growth_rate

@@ -16,7 +16,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._models import AbstractModel
+from .models import AbstractModel
 
 GROWTH_RATE = "growth_rate"  # the growth schedule's rate (needs growth=Growth(...))
 DT = "dt"  # the time step, per member (steps stay the same for every member)

@@ -21,7 +21,7 @@ import numpy as np
 
 from ._descriptors import describe
 from ._initial import initial_state
-from ._models import AbstractModel
+from .models import AbstractModel
 from ._render import png_path, tile_montage
 from ._serialise import (bounds_from_data, dumps, growth_from_dict, key_from_data, model_from_dict, read_npz,
                          source_from_dict, write_npz)

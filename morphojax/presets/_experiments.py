@@ -20,7 +20,7 @@ import numpy as np
 
 from .._experiment import Experiment, Initial, Phase
 from .._growth import Growth, Source
-from .._models import Bard, Composite, GrayScott, Reinforcement, Turing
+from ..models import Bard, Composite, GrayScott, Reinforcement, Turing
 from .._render import Gradient
 from ._registry import ExperimentPreset, register, registered
 

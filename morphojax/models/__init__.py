@@ -1,0 +1,28 @@
+"""Reaction-diffusion models: the reaction terms, diffusion rates and saturation limits.
+
+`_base` holds `AbstractModel` / `AbstractReaction` and the per-species helpers; each family
+of reactions has its module (`_turing`: Bard, Turing; `_classic`: Gray-Scott and the other
+two-species systems of the literature; `_reinforcement`; `_custom`: a user's own reaction);
+`_composite` runs several side by side; `_names` builds a model from its command-line name.
+"""
+
+from ._base import AbstractModel, AbstractReaction, per_species
+from ._classic import GrayScott
+from ._composite import Composite
+from ._names import MODELS, model_from_name
+from ._reinforcement import Reinforcement
+from ._turing import Bard, Turing, bard_reaction
+
+__all__ = [
+    "AbstractModel",
+    "AbstractReaction",
+    "Bard",
+    "bard_reaction",
+    "Composite",
+    "GrayScott",
+    "MODELS",
+    "model_from_name",
+    "per_species",
+    "Reinforcement",
+    "Turing",
+]

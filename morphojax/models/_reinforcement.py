@@ -1,0 +1,60 @@
+"""Single-reagent reinforcement (leopard paper eq. 6): a cubic that pushes a concentration
+away from a threshold, keeping borders sharp under growth."""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+from jax import Array
+
+from .._checks import as_float_array, check_finite, check_range
+from ._base import AbstractReaction, check_limits, species_stack
+
+
+class Reinforcement(AbstractReaction):
+    """Single-reagent reinforcement (leopard paper eq. 6):
+
+        dc/dt = gamma (t - w - c)(t - c)(t + w - c) + Dc lap(c),  gamma = 3 sqrt(3) / (2 w^2)
+
+    Concentrations in (t - w, t) are pushed down towards t - w and those in (t, t + w) up
+    towards t + w, with -w and +w as the extreme rates: borders stay sharp while the
+    regions keep their shape under growth.
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("c",)
+    ALIASES: ClassVar[dict[str, str]] = {"diffusion": "diffusion_rate"}  # `diffusion()` is the method
+    threshold: Array
+    width: Array
+    diffusion_rate: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, threshold=5.0, width=5.0, diffusion=1.0, lower=0.0, upper=math.inf, *, diffusion_rate=None):
+        if diffusion_rate is not None:  # the field's own name, used by `replace`
+            diffusion = diffusion_rate
+        self.threshold = as_float_array(threshold, "Reinforcement.threshold")
+        self.width = as_float_array(width, "Reinforcement.width")
+        self.diffusion_rate = as_float_array(diffusion, "Reinforcement.diffusion")
+        self.lower = species_stack(lower, 1, "Reinforcement.lower")
+        self.upper = species_stack(upper, 1, "Reinforcement.upper")
+
+    def __check_init__(self):
+        check_finite(self.threshold, "Reinforcement.threshold")
+        check_finite(self.width, "Reinforcement.width")
+        check_range(self.width, "Reinforcement.width", low=0.0, low_open=True)
+        check_finite(self.diffusion_rate, "Reinforcement.diffusion")
+        check_range(self.diffusion_rate, "Reinforcement.diffusion (a diffusion rate)", low=0.0)
+        check_limits(self)
+
+    @property
+    def gamma(self):
+        return 3.0 * math.sqrt(3.0) / (2.0 * self.width**2)
+
+    def reaction(self, x):
+        c = x[0]
+        t, w = self.threshold, self.width
+        return (self.gamma * (t - w - c) * (t - c) * (t + w - c))[None]
+
+    def diffusion(self):
+        return species_stack(self.diffusion_rate, 1, "Reinforcement diffusion")
