@@ -23,7 +23,7 @@ from ._checks import as_float_array, check_finite, check_range, is_concrete
 from .domains import as_domain
 from ._loop import drive
 from .models import AbstractModel, per_species
-from ._plan import BlockLadder
+from ._plan import BlockLadder, WholeCapacity
 from ._state import State
 from ._status import Run, SimulationError
 from ._step import Config
@@ -108,6 +108,8 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
         growth.check_capacity(state, steps, dt, origin)
     sources = tuple(s.check(state) for s in sources)
     dt = as_float_array(dt, "dt").astype(state.fields.dtype)
+    if plan is not None and not isinstance(plan, (BlockLadder, WholeCapacity)):
+        raise ValueError(f"plan must be mj.BlockLadder(...) or mj.WholeCapacity() (got {plan!r})")
     return domain, cfg, dt, sources, BlockLadder() if plan is None else plan
 
 

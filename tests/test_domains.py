@@ -69,6 +69,8 @@ def test_plans_agree(key, shape, capacity, steps):
     whole = mj.simulate(model, state, steps, dt, plan=mj.WholeCapacity(), **run)
     np.testing.assert_array_equal(np.asarray(ladder.fields), np.asarray(whole.fields))
     assert ladder.size.tolist() == whole.size.tolist() == [shape[0] - (-steps // 6), shape[1] - (-steps // 6)]
+    with pytest.raises(ValueError, match="plan must be"):
+        mj.simulate(model, state, 6, dt, plan="ladder", **run)
 
 
 def test_run_status(key):
