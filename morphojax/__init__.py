@@ -7,7 +7,7 @@
     a, b = state.arrays()
 """
 
-from .domains import BOUNDARIES, STENCILS, AbstractDomain, Lattice, laplacian, max_stable_dt
+from .domains import BOUNDARIES, STENCILS, AbstractDomain, HexLattice, Lattice, laplacian, max_stable_dt
 from .models import (
     AbstractModel,
     Bard,
@@ -27,6 +27,7 @@ from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, map_image, montage, render, render_experiment, save_png, to_image
+from ._render_hex import hex_image, render_hex
 from .presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
 from ._sweep import sweep
@@ -82,6 +83,8 @@ __all__ = [
     "GrayScott",
     "Growth",
     "hard_cells",
+    "hex_image",
+    "HexLattice",
     "has_converged",
     "Initial",
     "initial_state",
@@ -115,6 +118,7 @@ __all__ = [
     "relative_change",
     "render",
     "render_experiment",
+    "render_hex",
     "Result",
     "rollout",
     "Run",

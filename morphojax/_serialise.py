@@ -23,7 +23,7 @@ import numpy as np
 
 from ._bounds import Barrier
 from ._checks import is_concrete
-from .domains import AbstractDomain, Lattice
+from .domains import AbstractDomain, HexLattice, Lattice
 from ._growth import Growth, Source
 from .models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
 from ._state import State
@@ -88,7 +88,7 @@ def model_from_dict(data: dict) -> AbstractModel:
     return MODEL_TYPES[kind](**params)
 
 
-DOMAIN_TYPES = {cls.__name__: cls for cls in (Lattice,)}
+DOMAIN_TYPES = {cls.__name__: cls for cls in (Lattice, HexLattice)}
 
 
 def domain_to_dict(domain: AbstractDomain) -> dict:

@@ -93,6 +93,9 @@ def _map_leaves(model):
 def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth, sources, key, check_dt, origin, plan):
     domain = as_domain(domain, stencil=stencil, boundary=boundary)
     cfg = Config(bounds=bounds_policy(bounds), dynamic=bool(state.growable or growth is not None))
+    if cfg.dynamic and not domain.supports_growth:
+        raise ValueError(f"growth is not supported on the {domain.description}: pass growth=None and a state without "
+                         "room to grow (State.from_arrays without capacity=)")
     _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt)
     sources = tuple(sources or ())
     if (growth is not None or sources) and key is None:

@@ -1,12 +1,14 @@
 """Domains: where species diffuse. Each owns its operator, stability limit and layout.
 
 `AbstractDomain` is the interface the stepping loop uses; `Lattice` is the square lattice
-(nine- or five-point stencil, wrap or no-flux). New domains (hexagonal lattices,
-anisotropic diffusion, triangle meshes, point cells) subclass `AbstractDomain` here.
+(nine- or five-point stencil or the thesis's Moore sum, wrap or no-flux), `HexLattice` the
+hexagonal one (odd-r offset layout). New domains (anisotropic diffusion, triangle meshes,
+point cells) subclass `AbstractDomain` here.
 """
 
 from ._base import AbstractDomain
+from ._hex import HexLattice
 from ._lattice import Lattice, as_domain, laplacian, max_stable_dt
 from ._stencils import BOUNDARIES, STENCILS
 
-__all__ = ["AbstractDomain", "as_domain", "BOUNDARIES", "laplacian", "Lattice", "max_stable_dt", "STENCILS"]
+__all__ = ["AbstractDomain", "as_domain", "BOUNDARIES", "HexLattice", "laplacian", "Lattice", "max_stable_dt", "STENCILS"]

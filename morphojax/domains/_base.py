@@ -45,6 +45,11 @@ class AbstractDomain(eqx.Module):
     def description(self) -> str:
         """A few words naming the operator, for messages ("nine-point stencil")."""
 
+    @property
+    def supports_growth(self) -> bool:
+        """Whether a growing state (matrix expansion, `growth=`) may run on this domain."""
+        return False
+
     # ---- what the stepping loop uses -------------------------------------------------
     @abc.abstractmethod
     def carry(self, fields: Array, size: Array, dynamic: bool) -> Array:

@@ -1,4 +1,4 @@
-"""The square lattice: a 3x3 stencil Laplacian with ghost-cell boundaries."""
+"""The square lattice: a 3x3 stencil (a Laplacian, or the thesis's neighbour sum) with ghost-cell boundaries."""
 
 from __future__ import annotations
 
@@ -12,12 +12,17 @@ from ._base import AbstractDomain
 
 
 class Lattice(AbstractDomain):
-    """The square lattice: a 3x3 stencil Laplacian with ghost-cell boundaries.
+    """The square lattice: a 3x3 stencil with ghost-cell boundaries.
 
     Args:
         stencil: "nine-point" (the leopard paper's isotropic [[1,4,1],[4,-20,4],[1,4,1]]/6,
-            spectral radius 16/3) or "five-point" ([[0,1,0],[1,-4,1],[0,1,0]], radius 8);
-            both approximate the Laplacian in cells^-2.
+            spectral radius 16/3) or "five-point" ([[0,1,0],[1,-4,1],[0,1,0]], radius 8):
+            both approximate the Laplacian, in cells^-2; or "moore", the thesis's
+            equal-weight sum over the eight neighbours sum_j (u_j - u) (section 4.3,
+            [[1,1,1],[1,-8,1],[1,1,1]]): in the same units it approximates 3 x the
+            Laplacian (a rate D with "moore" diffuses as 3 D with "nine-point"), spectral
+            radius 12 (the stripe mode, alternating along one axis; the checkerboard gives
+            8). The thesis's diffusion rates are used with "moore" as printed.
         boundary: "wrap" (toroidal) or "no-flux" (ghost cell = edge cell, as scipy's
             mode="reflect": pure diffusion conserves mass).
 
@@ -39,6 +44,10 @@ class Lattice(AbstractDomain):
     @property
     def ndim(self) -> int:
         return 2
+
+    @property
+    def supports_growth(self) -> bool:
+        return True
 
     @property
     def description(self) -> str:
@@ -106,5 +115,6 @@ def max_stable_dt(max_diffusion: float, stencil: str = "nine-point") -> float:
 
 
 def laplacian(x, boundary: str = "wrap", stencil: str = "nine-point"):
-    """Discrete Laplacian of `x` (..., rows, cols) with the given boundary and stencil."""
+    """The stencil's operator on `x` (..., rows, cols) with the given boundary: a discrete
+    Laplacian (cells^-2), or for "moore" the neighbour sum (about 3 x the Laplacian)."""
     return Lattice(stencil, boundary).apply(x)

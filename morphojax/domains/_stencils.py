@@ -7,7 +7,7 @@ around the active region:
 - "no-flux": the ghost cell equals the edge cell next to it (scipy.ndimage mode="reflect"),
   so nothing crosses the border and total mass is conserved by pure diffusion.
 
-The Laplacian is then a fixed-size stencil over the padded array, which XLA fuses with
+The operator is then a fixed-size stencil over the padded array, which XLA fuses with
 the reaction into one loop. The active region may be smaller than the array (a growing
 lattice at fixed capacity); ghost cells are then placed right after the active rows and
 columns, so nothing leaks in from unused capacity.
@@ -21,13 +21,22 @@ import jax.numpy as jnp
 from .._checks import check_choice
 
 BOUNDARIES = ("wrap", "no-flux")
-STENCILS = ("nine-point", "five-point")
+STENCILS = ("nine-point", "five-point", "moore")
 
-# Largest |eigenvalue| of each stencil (at the checkerboard mode), in cells^-2:
-# nine-point [[1,4,1],[4,-20,4],[1,4,1]]/6 -> 16/3; five-point [[0,1,0],[1,-4,1],[0,1,0]] -> 8.
-SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0}
+# Largest |eigenvalue| of each stencil over all lattice sizes, in cells^-2. The symbol of a
+# 3x3 stencil at wave numbers (k, l) is bilinear in (cos k, cos l), so its extremes lie at
+# the corners (cos k, cos l) = (+-1, +-1):
+#   nine-point [[1,4,1],[4,-20,4],[1,4,1]]/6: (8 (cos k + cos l) + 4 cos k cos l - 20) / 6,
+#     -16/3 at the checkerboard (-1, -1);
+#   five-point [[0,1,0],[1,-4,1],[0,1,0]]: 2 cos k + 2 cos l - 4, -8 at the checkerboard;
+#   moore [[1,1,1],[1,-8,1],[1,1,1]]: 2 cos k + 2 cos l + 4 cos k cos l - 8, -12 at the
+#     stripes (-1, +1) (the checkerboard gives only -8).
+# Each is attained on a wrapped lattice with an even number of rows or columns and bounds
+# every other lattice and boundary (no-flux drops links, which lowers the quadratic form).
+SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0, "moore": 12.0}
 _STENCIL_ALIASES = {"9": "nine-point", "9-point": "nine-point", "nine": "nine-point",
-                    "5": "five-point", "5-point": "five-point", "five": "five-point"}
+                    "5": "five-point", "5-point": "five-point", "five": "five-point",
+                    "8": "moore", "8-neighbour": "moore", "8-neighbor": "moore", "eight": "moore"}
 _BOUNDARY_ALIASES = {"periodic": "wrap", "toroidal": "wrap", "noflux": "no-flux", "neumann": "no-flux",
                      "reflect": "no-flux"}
 
@@ -49,6 +58,8 @@ def stencil_weights(stencil: str = "nine-point"):
     stencil = normalise_stencil(stencil)
     if stencil == "nine-point":
         return [[1 / 6, 4 / 6, 1 / 6], [4 / 6, -20 / 6, 4 / 6], [1 / 6, 4 / 6, 1 / 6]]
+    if stencil == "moore":
+        return [[1.0, 1.0, 1.0], [1.0, -8.0, 1.0], [1.0, 1.0, 1.0]]
     return [[0.0, 1.0, 0.0], [1.0, -4.0, 1.0], [0.0, 1.0, 0.0]]
 
 
@@ -98,12 +109,17 @@ def repad(p, x, size, boundary: str):
 
 
 def laplacian_padded(p, stencil: str = "nine-point"):
-    """Laplacian of the interior of a ghost-padded array `p` (..., rows + 2, cols + 2)."""
+    """The stencil applied to the interior of a ghost-padded array `p` (..., rows + 2,
+    cols + 2): a Laplacian in cells^-2 for "nine-point" and "five-point"; for "moore" the
+    thesis's equal-weight sum over the eight neighbours, sum_j (u_j - u), which
+    approximates 3 x the Laplacian (edges give lap u, the diagonals 2 lap u)."""
     c = p[..., 1:-1, 1:-1]
     edges = p[..., :-2, 1:-1] + p[..., 2:, 1:-1] + p[..., 1:-1, :-2] + p[..., 1:-1, 2:]
     if stencil == "five-point":
         return edges - 4.0 * c
     corners = p[..., :-2, :-2] + p[..., :-2, 2:] + p[..., 2:, :-2] + p[..., 2:, 2:]
+    if stencil == "moore":
+        return edges + corners - 8.0 * c
     return (4.0 * edges + corners - 20.0 * c) * (1.0 / 6.0)
 
 

@@ -13,6 +13,7 @@ builder); `morphojax presets` lists them and `morphojax run NAME` runs one. The 
 from ._registry import PRESETS, AutomatonPreset, ExperimentPreset, Preset, of_kind, preset, register, registered
 from ._experiments import FIG4_RATIOS, leopard_row_weights
 from . import _automata  # noqa: F401  (registers the automaton presets)
+from . import _lattices  # noqa: F401  (registers the square/hexagonal lattice presets)
 from ._automaton_outputs import run_automaton, run_life_like
 
 REACTION_DIFFUSION_PRESETS = of_kind(ExperimentPreset.kind)  # snapshots of PRESETS by kind

@@ -1,0 +1,151 @@
+"""The hexagonal lattice in the odd-r offset layout: six neighbours per cell, wrap or no-flux.
+
+Fields have shape (species, rows, cols). Row r holds the cells at y = r sqrt(3)/2 and
+x = c + (r mod 2) / 2: odd rows are shifted half a cell to the right, so every cell has
+six neighbours at unit distance:
+
+- (r, c - 1) and (r, c + 1) in its own row,
+- for even r: (r - 1, c - 1), (r - 1, c), (r + 1, c - 1), (r + 1, c),
+- for odd r:  (r - 1, c), (r - 1, c + 1), (r + 1, c), (r + 1, c + 1).
+
+The carried layout is the fields with one ring of ghost cells (as on the square lattice):
+"wrap" copies the opposite edges (a torus; the ghost row above row 0 is the last row, so
+the row parity only stays consistent with an even number of rows); "no-flux" pads with
+zeros and subtracts u once per neighbour that exists, which drops every link that would
+leave the lattice (pure diffusion then conserves mass exactly).
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._checks import check_choice
+from . import _stencils
+from ._base import AbstractDomain
+
+OPERATORS = ("laplacian", "sum")
+# Largest |eigenvalue| over all lattice sizes, in cells^-2. On the infinite lattice the
+# neighbour sum sum_j (u_j - u) has the symbol 2 (cos a + cos b + cos(a + b)) - 6 (a, b the
+# phases along two lattice directions); cos a + cos b + cos(a + b) >= -3/2, reached at
+# a = b = 2 pi / 3, so the sum's spectrum is [-9, 0] and the Laplacian's (2/3 of it)
+# [-6, 0]. A wrapped lattice attains it when its columns are a multiple of 3 (its rows are
+# even); no-flux lattices stay below (dropping links lowers the quadratic form).
+SPECTRAL_RADIUS = {"laplacian": 6.0, "sum": 9.0}
+_OPERATOR_ALIASES = {"lap": "laplacian", "neighbour-sum": "sum", "neighbor-sum": "sum", "equal-weight": "sum"}
+ROW_HEIGHT = math.sqrt(3.0) / 2.0  # distance between rows, in cells
+
+
+def neighbour_sum(p, xp=jnp):
+    """Sum over each interior cell's six neighbours in a ghost-padded odd-r array `p`
+    (..., rows + 2, cols + 2). `xp` is jax.numpy or numpy."""
+    rows = p.shape[-2] - 2
+    even = (np.arange(rows) % 2 == 0)[:, None]  # static: the layout's row parity
+    up, down, mid = p[..., :-2, :], p[..., 2:, :], p[..., 1:-1, :]
+    same = mid[..., :-2] + mid[..., 2:] + up[..., 1:-1] + down[..., 1:-1]
+    # even rows reach the column to the left in the rows above and below, odd rows the right
+    return same + xp.where(even, up[..., :-2] + down[..., :-2], up[..., 2:] + down[..., 2:])
+
+
+def neighbour_count(shape, boundary: str) -> np.ndarray:
+    """Number of neighbours of each cell of a (rows, cols) lattice (6 everywhere on a torus)."""
+    if boundary == "wrap":
+        return np.full(shape, 6.0)
+    return neighbour_sum(np.pad(np.ones(shape), 1), np)
+
+
+class HexLattice(AbstractDomain):
+    """The hexagonal lattice (odd-r offset layout, unit spacing between cell centres).
+
+    Args:
+        boundary: "wrap" (a torus: needs an even number of rows) or "no-flux" (links that
+            leave the lattice are dropped: an edge cell has fewer than six neighbours).
+        operator: "laplacian" (default): (2/3) sum_j (u_j - u), the six-neighbour
+            Laplacian in cells^-2 (second order: the six unit neighbours give
+            sum_j (u_j - u) = (3/2) lap u + O(h^4)), spectral radius 6; or "sum": the
+            thesis's unnormalised equal-weight sum over the six neighbours, sum_j (u_j - u)
+            (section 4.3, its hexagonal listings), which approximates (3/2) x the
+            Laplacian in the same units (a rate D with "sum" diffuses as 1.5 D with
+            "laplacian"), spectral radius 9.
+
+    Growth (matrix expansion) is not supported on this lattice: a growing state is refused.
+    Pictures: `mj.hex_image` draws the cells as hexagons.
+    """
+
+    boundary: str = eqx.field(static=True)
+    operator: str = eqx.field(static=True)
+
+    def __init__(self, boundary: str = "wrap", operator: str = "laplacian"):
+        self.boundary = _stencils.normalise_boundary(boundary)
+        key = str(operator).lower()
+        key = _OPERATOR_ALIASES.get(key, key)
+        check_choice(key, "operator", OPERATORS)
+        self.operator = key
+
+    @property
+    def spectral_radius(self) -> float:
+        return SPECTRAL_RADIUS[self.operator]
+
+    @property
+    def ndim(self) -> int:
+        return 2
+
+    @property
+    def description(self) -> str:
+        what = "Laplacian" if self.operator == "laplacian" else "neighbour sum"
+        return f"hexagonal lattice {what} ({self.boundary})"
+
+    def check_shape(self, shape) -> None:
+        """Raise a ValueError when a (rows, cols) lattice cannot hold this domain."""
+        rows, cols = int(shape[-2]), int(shape[-1])
+        if self.boundary == "wrap" and rows % 2:
+            raise ValueError(f"HexLattice(boundary='wrap') needs an even number of rows (got {rows}): the odd-r "
+                             "layout shifts odd rows, so a torus must pair them; use an even number of rows or "
+                             "boundary='no-flux'")
+        if rows < 2 or cols < 2:
+            raise ValueError(f"HexLattice needs at least 2 rows and 2 columns (got {rows} x {cols})")
+
+    def _pad(self, x):
+        self.check_shape(x.shape)
+        widths = [(0, 0)] * (x.ndim - 2) + [(1, 1), (1, 1)]
+        return jnp.pad(x, widths, mode="wrap" if self.boundary == "wrap" else "constant")
+
+    def _operator_padded(self, p):
+        x = p[..., 1:-1, 1:-1]
+        n = jnp.asarray(neighbour_count(x.shape[-2:], self.boundary), x.dtype)
+        s = neighbour_sum(p) - n * x
+        return s * (2.0 / 3.0) if self.operator == "laplacian" else s
+
+    # ---- what the stepping loop uses ---------------------------------------------------
+    def carry(self, fields, size, dynamic):
+        if dynamic:
+            raise ValueError("growth is not supported on a HexLattice (its active region is the whole array)")
+        return self._pad(fields)
+
+    def interior(self, carried):
+        return carried[..., 1:-1, 1:-1]
+
+    def diffusion(self, carried, rates):
+        op = self._operator_padded(carried)
+        return [rates[i] * op[i] for i in range(op.shape[0])]
+
+    def write(self, carried, new, size, dynamic):
+        return self._pad(new)
+
+    def active_mask(self, shape, size):
+        return _stencils.active_mask(shape, size)
+
+    def apply(self, fields):
+        return self._operator_padded(self._pad(jnp.asarray(fields)))
+
+    # ---- geometry ------------------------------------------------------------------------
+    @staticmethod
+    def centres(shape) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) of the cell centres of a (rows, cols) lattice, in cells: x along a row
+        (odd rows shifted by 1/2), y down the rows (sqrt(3)/2 apart)."""
+        rows, cols = int(shape[0]), int(shape[1])
+        r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+        return c + 0.5 * (r % 2), r * ROW_HEIGHT
