@@ -26,7 +26,8 @@ from ._simulate import rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
-from ._render import Gradient, map_image, montage, render, render_experiment, save_png, to_image
+from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
+from ._animation import save_animation
 from ._render_hex import hex_image, render_hex
 from .presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
@@ -77,6 +78,7 @@ __all__ = [
     "Descriptors",
     "DISTRIBUTIONS",
     "Experiment",
+    "experiment_picture",
     "glider",
     "Gradient",
     "gray_scott_state",
@@ -125,6 +127,7 @@ __all__ = [
     "run_experiment",
     "run_status",
     "RunStatus",
+    "save_animation",
     "save_npz",
     "save_png",
     "simulate",

@@ -283,7 +283,8 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
             state = phase.prepare(state)
             origin = int(state.step) if is_concrete(state.step) else state.step
         kwargs = dict(domain=phase.domain, bounds=phase.bounds, growth=phase.growth,
-                      sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin, progress=progress)
+                      sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin,
+                      progress=(phase.name or f"phase {i + 1}") if progress else False)
         marks = set(_frame_steps(phase)) if frames and phase.frames else set()
         saves = set(range(phase_step + checkpoint_every, phase.steps, checkpoint_every)) if checkpoint_every else set()
         cuts = {phase.steps} | marks | saves

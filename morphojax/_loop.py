@@ -205,7 +205,7 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
         from tqdm.auto import tqdm
 
         bar = tqdm(total=steps, desc=description, unit="step", leave=False)
-    frames_all = []
+    frames_all, compiled = [], set()
     status = RunStatus.healthy()
     current = state
     try:
@@ -217,6 +217,10 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
             if cfg.dynamic and segments is None:
                 per = max(1, min(save_every or chunk, int(n))) if n else 1
                 blocks, schedule = plan.chunk_blocks(current, growth, int(n), dt, origin, per, rungs=rungs)
+            if bar is not None:  # a piece of a new shape compiles first: say so rather than show a rate
+                shape = (int(n), segments[0] if segments is not None else blocks)
+                bar.set_postfix_str("" if shape in compiled else "compiling")
+                compiled.add(shape)
             run = functools.partial(
                 _integrate, model, domain, current.fields, current.size, current.step, current.time, dt, key, origin,
                 growth, sources, names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,

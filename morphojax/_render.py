@@ -259,10 +259,18 @@ def melanin(b, c) -> np.ndarray:
     return base + (1.0 - base) * bn
 
 
-def render_experiment(state, experiment, scale: int = 1) -> Image.Image:
-    """The final image of an experiment: its `show` species through its colour map, or the
-    leopard's melanin texture (grey: white fur = 0, black = 1) when show == "melanin"."""
+def experiment_picture(state, experiment) -> tuple[np.ndarray, dict]:
+    """What an experiment shows of a state: (2D array, keyword arguments of `to_image`):
+    its `show` species through its colour map, or the leopard's melanin texture (grey:
+    white fur = 0, black = 1) when show == "melanin"."""
     if experiment.show == "melanin":
-        m = melanin(state.array("b"), state.array("c"))
-        return to_image(1.0 - m, cmap="gray", vmin=0.0, vmax=1.0, scale=scale)
-    return to_image(state.array(experiment.show), cmap=experiment.cmap, scale=scale)
+        return 1.0 - melanin(state.array("b"), state.array("c")), {"cmap": "gray", "vmin": 0.0, "vmax": 1.0}
+    return state.array(experiment.show), {"cmap": experiment.cmap}
+
+
+def render_experiment(state, experiment, scale: int = 1, vmin=None, vmax=None) -> Image.Image:
+    """The final image of an experiment (see `experiment_picture`); `vmin`/`vmax` fix the
+    colour range (e.g. one range for all frames of a movie) where the picture has none."""
+    array, style = experiment_picture(state, experiment)
+    style = {"vmin": vmin, "vmax": vmax} | style
+    return to_image(array, scale=scale, **style)

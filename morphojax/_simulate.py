@@ -126,9 +126,10 @@ def _run(model, state, steps, dt, boundary, options, save_every=None, save_fn=No
     domain, cfg, dt, sources, plan = _prepare(model, state, steps, dt, o["domain"], boundary, o["stencil"],
                                               o["bounds"], o["growth"], o["sources"], o["key"], o["check_dt"],
                                               o["origin"], o["plan"])
+    if description is None:  # the progress bar's name: a phase's, or the model's
+        description = o["progress"] if isinstance(o["progress"], str) else type(model).__name__
     return drive(model, domain, state, steps, dt, cfg, o["growth"], sources, o["key"], o["origin"], o["checkpoint"],
-                 o["progress"], save_every, save_fn, type(model).__name__ if description is None else description,
-                 plan)
+                 bool(o["progress"]), save_every, save_fn, description, plan)
 
 
 def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str | None = None, *,
@@ -156,7 +157,8 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str |
         key: `jax.random` key, required with growth or sources. The same key gives the same run.
         throw: raise `SimulationError` if the state becomes NaN/Inf (with the first bad step)
             or growth overflows the capacity. With `throw=False` the state is returned as is.
-        progress: show a progress bar (the run is split into pieces; the result is identical).
+        progress: show a progress bar (the run is split into pieces; the result is identical);
+            a string shows it under that name (e.g. the phase's).
         checkpoint: None, True (checkpoint every ~sqrt(steps) steps) or an int chunk length:
             rematerialise inside chunks under `jax.grad`, so memory does not grow with steps.
         origin: the step at which the growth schedule started (default: `state.step`);

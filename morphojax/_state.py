@@ -97,6 +97,9 @@ class State(eqx.Module):
         dtype = default_float() if dtype is None else dtype
         mats = []
         for i, arr in enumerate(arrays):
+            if jnp.iscomplexobj(arr):
+                raise ValueError(f"State.from_arrays: species {i} is complex; concentrations must be real "
+                                 "(pass arr.real or np.abs(arr) explicitly)")
             arr = jnp.asarray(arr, dtype=dtype)
             if arr.ndim not in (1, 2, 3):
                 raise ValueError(f"State.from_arrays: species {i} must be a 1D, 2D or 3D array (got shape {arr.shape})")

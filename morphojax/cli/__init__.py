@@ -40,6 +40,9 @@ def main(argv=None) -> int:
     except ValueError as err:  # bad input: a clear message, no traceback
         print(f"morphojax {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as err:  # Ctrl-C: a line saying what is kept, no traceback
+        print(f"morphojax {args.command}: {err or 'interrupted'}", file=sys.stderr)
+        return 130
 
 
 __all__ = ["build_parser", "main"]

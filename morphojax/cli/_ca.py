@@ -4,13 +4,14 @@ from the command line; the automaton presets run through `morphojax run NAME`.""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import morphojax as mj
 from morphojax._checks import check_range  # the library's range messages, for the flags
 from morphojax._render import png_path
 from morphojax.presets import run_automaton, run_life_like
+
+from ._output import report
 
 DEFAULT_SPECIES = (3.2, 6.0, 1.0, -0.2)  # paper 002's two-species example (section 4.2)
 
@@ -46,7 +47,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--threshold", type=float, default=0.01, help="convergence threshold (fraction, default 0.01)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--frames", action="store_true", help="also write intermediate snapshots (Young automata)")
-    p.add_argument("--out", type=Path, default=Path("ca.png"))
+    p.add_argument("--out", type=Path, default=Path("out") / "ca.png", help="output PNG (default out/ca.png)")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=run_ca_command)
     return p
 
@@ -75,5 +77,7 @@ def _run_ca(args) -> int:
     else:
         ca = mj.YoungCA(args.species or [DEFAULT_SPECIES], args.neighbourhood, args.include_self)
         summary = run_automaton(ca, shape, frames=args.frames, **run)
-    print(json.dumps(summary))
+    t = summary.get("seconds_run", 0.0)
+    report(summary, f"ca: {summary['steps']} steps on {'x'.join(map(str, shape))}, {t:.2f} s; "
+                    f"wrote {', '.join(summary.get('files', [str(out)]))}", args.quiet)
     return 0

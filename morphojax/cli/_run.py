@@ -1,9 +1,14 @@
 """`morphojax presets | run | resume | render`: the presets and the runs of experiments.
 
     morphojax presets                         list the presets
-    morphojax run NAME [--out F.png] [--seed N] [--quick] [--frames]
+    morphojax run NAME [--out F.png] [--seed N] [--quick] [--frames] [--gif F.gif] [--quiet]
     morphojax resume CHECKPOINT.npz [--out F.png]
-    morphojax render RESULT.npz [--species b] [--cmap inferno] --out F.png
+    morphojax render FILE.npz [--species b] [--cmap inferno] --out F.png
+
+Files go next to `--out` (default `out/NAME.png`, never the working folder itself). Each run
+prints one JSON line on stdout and one line for people on stderr (`--quiet`: JSON only).
+`render` draws any `.npz` the tool writes: a run's result, a sweep (its montage) or an
+automaton's cells (slices in 3D).
 
 Every reaction-diffusion run writes its image and an `.npz` (final species cropped to the
 active lattice, plus JSON metadata with every parameter, the seed and the step counter), so
@@ -13,6 +18,7 @@ their own files (see `morphojax.presets`).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import sys
@@ -22,7 +28,12 @@ from pathlib import Path
 
 import morphojax as mj
 from morphojax._render import png_path  # the one place a picture's path gets its .png
+from morphojax.presets import lookup
+from morphojax.presets._automaton_outputs import default_scale, lattice_picture
 
+from ._output import report
+
+GIF_FRAMES = 24  # snapshots a run takes for `--gif` (spread over its phases)
 TABLE_WIDTH = 100  # `morphojax presets` fits a terminal this wide (or the terminal, if narrower)
 FIGURE_WIDTH = 24  # the figure column wraps beyond this
 
@@ -34,7 +45,8 @@ def register(sub) -> None:
 
     p = sub.add_parser("run", help="run a preset and write its image and .npz")
     p.add_argument("name", help="preset name (see `morphojax presets`)")
-    p.add_argument("--out", type=Path, default=None, help="output PNG (default NAME.png); the .npz goes next to it")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output PNG (default out/NAME.png); the .npz goes next to it")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same result)")
     p.add_argument("--quick", action="store_true", help="a reduced version that runs in seconds")
     p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
@@ -42,6 +54,9 @@ def register(sub) -> None:
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
                    help="write the .npz checkpoint every STEPS steps (resume with `morphojax resume`)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--gif", type=Path, default=None, metavar="F.gif",
+                   help="also write the run's snapshots as an animation (.gif, or .mp4 with imageio[ffmpeg])")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("resume", help="continue a run from its .npz checkpoint")
@@ -51,13 +66,15 @@ def register(sub) -> None:
     p.add_argument("--scale", type=int, default=2)
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--gif", type=Path, default=None, metavar="F.gif")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=_cmd_resume)
 
-    p = sub.add_parser("render", help="render one species of a result .npz to PNG")
+    p = sub.add_parser("render", help="draw any .npz morphojax writes (run, sweep, automaton) as a PNG")
     p.add_argument("result", type=Path)
     p.add_argument("--species", default=None, help="species name (default: the experiment's choice, else the last)")
     p.add_argument("--cmap", default=None, help="inferno, viridis, gray, giraffe, ...")
-    p.add_argument("--scale", type=int, default=2)
+    p.add_argument("--scale", type=int, default=None, help="pixels per cell (default 2; automata as `ca` draws them)")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=_cmd_render)
 
@@ -96,16 +113,16 @@ def presets_table(presets, width: int = TABLE_WIDTH) -> list[str]:
 
 # ---- run: dispatch on the preset's kind ------------------------------------------------------
 def _cmd_run(args):
-    if args.name not in mj.PRESETS:
-        raise SystemExit(f"morphojax run: unknown preset {args.name!r}; choose from: {', '.join(mj.PRESETS)}")
-    item = mj.PRESETS[args.name]
-    out = _picture_path(args.out if args.out is not None else f"{args.name}.png")
+    item = lookup(args.name)
+    out = _picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png")
     return RUNNERS[item.kind](item, args, out)
 
 
 def _run_automaton(item, args, out: Path):
+    t0 = time.perf_counter()
     summary = item.run(seed=args.seed, quick=args.quick, out=out, frames=args.frames)
-    print(json.dumps({"image": str(out), **summary}, default=str))
+    report({"image": str(out), **summary}, f"{item.name}: wrote {out} ({time.perf_counter() - t0:.1f} s)",
+           args.quiet)
     return 0
 
 
@@ -122,9 +139,20 @@ RUNNERS = {"reaction-diffusion": _run_reaction_diffusion, "automaton": _run_auto
 
 def _run_one(exp, args, npz: Path, resume=None):
     t0 = time.perf_counter()
-    result = mj.run_experiment(exp, seed=getattr(args, "seed", 0), frames=args.frames,
-                               progress=not args.no_progress, checkpoint_path=npz if args.checkpoint_every else None,
-                               checkpoint_every=args.checkpoint_every, resume=resume)
+    if getattr(args, "gif", None) is not None:  # a movie wants more snapshots than a figure
+        exp = dataclasses.replace(exp, phases=tuple(
+            dataclasses.replace(p, frames=max(p.frames, GIF_FRAMES // len(exp.phases)))
+            if isinstance(p.frames, int) else p for p in exp.phases))
+    try:
+        result = mj.run_experiment(exp, seed=getattr(args, "seed", 0), frames=args.frames or args.gif is not None,
+                                   progress=not args.no_progress,
+                                   checkpoint_path=npz if args.checkpoint_every else None,
+                                   checkpoint_every=args.checkpoint_every, resume=resume)
+    except KeyboardInterrupt:
+        saved = args.checkpoint_every and npz.exists()
+        raise KeyboardInterrupt(f"interrupted; the last checkpoint is {npz}: continue with `morphojax resume {npz}`"
+                                if saved else "interrupted (no checkpoint: pass --checkpoint-every STEPS to keep "
+                                "one)") from None
     result.metadata["run"]["seconds"] = time.perf_counter() - t0
     result.metadata["run"]["quick"] = bool(getattr(args, "quick", False))
     result.save(npz)
@@ -135,6 +163,8 @@ def _write_outputs(result, out: Path, args):
     img = mj.render_experiment(result.state, result.experiment, scale=args.scale)
     img.save(out)
     written = [str(out), str(out.with_suffix(".npz"))]
+    if args.gif is not None:
+        written.append(str(_write_movie(result, args)))
     if args.frames and result.frames:
         folder = out.with_name(out.stem + "_frames")
         folder.mkdir(exist_ok=True)
@@ -151,9 +181,21 @@ def _write_outputs(result, out: Path, args):
                                    " ..." if len(tiles) > 4 else ""))
             sheet.save(folder / "frames.png")
         written.append(str(folder))
-    size = result.state.shape
-    print(json.dumps({"preset": result.experiment.name, "written": written, "size": list(size),
-                      "steps": int(result.state.step), "seconds": round(result.metadata["run"]["seconds"], 2)}))
+    size, seconds = result.state.shape, result.metadata["run"]["seconds"]
+    report({"preset": result.experiment.name, "written": written, "size": list(size),
+            "steps": int(result.state.step), "seconds": round(seconds, 2)},
+           f"{result.experiment.name}: {int(result.state.step)} steps, {size[0]}x{size[1]} lattice, {seconds:.1f} s; "
+           f"wrote {', '.join(written)}", args.quiet)
+
+
+def _write_movie(result, args) -> Path:
+    """The run's snapshots (and its final state) as one animation, in one colour range."""
+    exp = result.experiment
+    states = [s for _, s in result.frames if _can_show(s, exp)] + [result.state]
+    pictures = [mj.experiment_picture(s, exp) for s in states]
+    style = pictures[-1][1]
+    return mj.save_animation(args.gif, [a for a, _ in pictures], cmap=style["cmap"], vmin=style.get("vmin"),
+                             vmax=style.get("vmax"), scale=args.scale)
 
 
 def _picture_path(path) -> Path:
@@ -192,7 +234,8 @@ def _run_figure(item, args, out: Path):
     row_labels = item.row_labels or [m.split("-")[-1] for m in item.members]
     mj.montage(images, ncols, row_labels=list(row_labels), col_labels=list(item.col_labels or []) or None,
                title=f"{item.name}: {item.figure}").save(out)
-    print(json.dumps({"preset": item.name, "written": [str(out)], "members": list(item.members)}))
+    report({"preset": item.name, "written": [str(out)], "members": list(item.members)},
+           f"{item.name}: {len(item.members)} runs; wrote {out}", args.quiet)
     return 0
 
 
@@ -211,11 +254,56 @@ def _cmd_resume(args):
 
 
 def _cmd_render(args):
-    state, meta = mj.load_npz(args.result)
     out = _picture_path(args.out)
+    kind = file_kind(args.result)
+    if kind == "sweep":
+        mj.load_sweep(args.result).montage(species=args.species if args.species is not None else -1,
+                                           cmap=args.cmap or "inferno").save(out)
+        return 0
+    if kind == "automaton":
+        automaton_picture(args.result, args.scale).save(out)
+        return 0
+    state, meta = mj.load_npz(args.result)
+    args.scale = 2 if args.scale is None else args.scale
     if args.species is None and args.cmap is None and "experiment" in meta:
         mj.render_experiment(state, mj.load_experiment(meta), scale=args.scale).save(out)
         return 0
     species = args.species if args.species is not None else state.names[-1]
     mj.to_image(state.array(species), cmap=args.cmap or "inferno", scale=args.scale).save(out)
     return 0
+
+
+def file_kind(path: Path) -> str:
+    """What a morphojax `.npz` holds: "result" (a run's species), "sweep" or "automaton"."""
+    import numpy as np
+
+    if not Path(path).exists():
+        raise ValueError(f"no such result file: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            names = set(data.files)
+            meta = json.loads(str(data["metadata"])) if "metadata" in names else {}
+    except (OSError, ValueError, json.JSONDecodeError) as err:
+        raise ValueError(f"{path} is not a morphojax .npz file ({err})") from err
+    if "cells" in names:
+        return "automaton"
+    if "config" in meta and "table" in meta:
+        return "sweep"
+    if "species" in meta:
+        return "result"
+    raise ValueError(f"{path} is not a file morphojax writes (a run's result, a sweep or an automaton's cells)")
+
+
+def automaton_picture(path: Path, scale: int | None):
+    """An automaton's saved cells as `morphojax ca` draws them (3D: slices)."""
+    import numpy as np
+
+    with np.load(path, allow_pickle=False) as data:
+        cells, meta = np.asarray(data["cells"]), json.loads(str(data["metadata"]))
+    scale = default_scale(cells.shape) if scale is None else scale
+    if meta.get("automaton") == "LifeLike":
+        return lattice_picture(1 - cells, 1, scale)
+    params = meta.get("params")
+    k = len((params[0] if isinstance(params, list) else params)["species"]) if params else int(cells.max())
+    steps = (meta.get("summary") or {}).get("steps")
+    return lattice_picture(cells, k, scale, title=None if steps is None else f"t = {steps}")

@@ -14,7 +14,6 @@ the table (pattern "unstable", with the step), not raised.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 from collections import Counter
@@ -23,6 +22,8 @@ from pathlib import Path
 import numpy as np
 
 import morphojax as mj
+
+from ._output import report
 
 _RANGE = re.compile(r"^\s*([^:]+):([^:]+):([^:]+)\s*$")
 DEFAULT_TIME = 100.0  # the leopard paper's Fig. 4 runs to t = 100
@@ -59,6 +60,7 @@ def register(subparsers) -> None:
     p.add_argument("--cmap", default="inferno", help="colour map of the montage")
     p.add_argument("--scale", type=int, default=None, help="pixels per cell in the montage (default: automatic)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.add_argument("--out", type=Path, required=True, help="the montage PNG; .csv, .json and .npz go next to it")
     p.set_defaults(func=run_sweep_command)
 
@@ -177,8 +179,10 @@ def run_sweep_command(args) -> int:
     result = mj.sweep(model, vary, **kwargs)
     written = result.save(args.out, species=kwargs["species"], cmap=args.cmap, scale=args.scale)
     patterns = Counter(row.get("pattern", "") for row in result.table)
-    print(json.dumps({"written": [str(p) for p in written.values()], "members": len(result),
-                      "shape": list(result.shape), "steps": kwargs["steps"], "dt": kwargs["dt"],
-                      "patterns": dict(patterns), "unstable": int((result.blowup_step >= 0).sum()),
-                      "seconds": round(result.seconds, 2)}))
+    unstable = int((result.blowup_step >= 0).sum())
+    report({"written": [str(p) for p in written.values()], "members": len(result), "shape": list(result.shape),
+            "steps": kwargs["steps"], "dt": kwargs["dt"], "patterns": dict(patterns), "unstable": unstable,
+            "seconds": round(result.seconds, 2)},
+           f"sweep: {len(result)} members ({unstable} unstable) in {result.seconds:.1f} s; "
+           f"wrote {', '.join(str(p) for p in written.values())}", args.quiet)
     return 0

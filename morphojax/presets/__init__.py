@@ -10,7 +10,8 @@ builder); `morphojax presets` lists them and `morphojax run NAME` runs one. The 
 `_automata`.
 """
 
-from ._registry import PRESETS, AutomatonPreset, ExperimentPreset, Preset, of_kind, preset, register, registered
+from ._registry import (PRESETS, AutomatonPreset, ExperimentPreset, Preset, lookup, of_kind, preset, register,
+                        registered)
 from ._experiments import FIG4_RATIOS, leopard_row_weights
 from . import _automata  # noqa: F401  (registers the automaton presets)
 from . import _lattices  # noqa: F401  (registers the square/hexagonal lattice presets)
@@ -25,6 +26,7 @@ __all__ = [
     "ExperimentPreset",
     "FIG4_RATIOS",
     "leopard_row_weights",
+    "lookup",
     "of_kind",
     "preset",
     "Preset",

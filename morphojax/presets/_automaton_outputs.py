@@ -24,6 +24,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 import morphojax as mj
+from .._serialise import write_npz
 from ..automata import SPECIES_COLOURS
 
 
@@ -43,9 +44,12 @@ def timed_run(automaton, cells, steps, **kwargs):
 
 def save_cells_npz(out: Path, cells, metadata: dict, **arrays) -> Path:
     """`out.npz` with `cells`, the JSON `metadata` and any other named arrays."""
-    path = out.with_suffix(".npz")
-    np.savez_compressed(path, cells=np.asarray(cells), metadata=json.dumps(metadata), **arrays)
-    return path
+    return write_npz(out.with_suffix(".npz"), cells=np.asarray(cells), metadata=json.dumps(metadata), **arrays)
+
+
+def default_scale(shape) -> int:
+    """Pixels per cell of an automaton's picture: 3 for 3D slices, about 400 pixels a side in 2D."""
+    return 3 if len(shape) == 3 else max(1, 400 // max(shape))
 
 
 def lattice_picture(cells, k, scale, title=None) -> Image.Image:
@@ -65,7 +69,7 @@ def frames_outputs(out: Path, frames, frame_steps, k, scale) -> list[str]:
     keep = frame_steps >= 0
     frames, frame_steps = frames[keep], frame_steps[keep]
     npz = out.with_name(out.stem + "_frames.npz")
-    np.savez_compressed(npz, frames=frames, steps=frame_steps)
+    write_npz(npz, frames=frames, steps=frame_steps)
     mid = [f if f.ndim == 2 else f[f.shape[0] // 2] for f in frames]
     png = out.with_name(out.stem + "_frames.png")
     mj.montage([mj.cells_image(f, k, scale) for f in mid], min(len(mid), 6),
@@ -90,7 +94,7 @@ def run_automaton(ca, shape, *, p=None, steps: int, stop: bool, seed: int, out: 
                 "initial": {"p": p, "kind": "uniform over K+1 states" if p is None else "differentiated with probability p"},
                 "steps": steps, "stop_at_convergence": stop, "threshold": threshold, "summary": summary,
                 **(extra or {})}
-    scale = scale or (3 if len(shape) == 3 else max(1, 400 // max(shape)))
+    scale = scale or default_scale(shape)
     lattice_picture(result.cells, k, scale, title=f"t = {n}").save(out)
     files = [str(out), str(save_cells_npz(out, result.cells, metadata, changes=np.asarray(result.changes)))]
     if len(shape) == 3:
@@ -108,7 +112,7 @@ def run_life_like(life, shape, *, p=None, steps: int, stop: bool, seed: int, out
     alive = 0.5 if p is None else p
     cells0 = jax.random.bernoulli(jax.random.key(seed), alive, shape).astype(jnp.int8)
     result, seconds = timed_run(life, cells0, steps, stop_at_convergence=stop, threshold=threshold)
-    lattice_picture(1 - np.asarray(result.cells), 1, 3 if len(shape) == 3 else max(1, 400 // max(shape))).save(out)
+    lattice_picture(1 - np.asarray(result.cells), 1, default_scale(shape)).save(out)
     metadata = {"automaton": "LifeLike", "rule": life.rule, "lattice": list(shape), "seed": seed,
                 "initial": {"alive_probability": alive}, "steps": steps}
     return {"steps": int(result.steps), "converged": bool(result.converged), "rule": life.rule,

@@ -15,6 +15,8 @@ dispatches on `kind`.
 
 from __future__ import annotations
 
+import difflib
+
 import dataclasses
 import time
 from pathlib import Path
@@ -102,11 +104,18 @@ def of_kind(kind: str) -> dict[str, Preset]:
     return {name: p for name, p in PRESETS.items() if p.kind == kind}
 
 
+def lookup(name: str) -> Preset:
+    """The registered preset `name`; an unknown name is a ValueError suggesting the closest."""
+    if name not in PRESETS:
+        close = difflib.get_close_matches(name, list(PRESETS), n=3, cutoff=0.5)
+        hint = f"did you mean {' or '.join(close)}?" if close else f"e.g. {', '.join(list(PRESETS)[:4])}"
+        raise ValueError(f"unknown preset {name!r}; {hint} (`morphojax presets` lists them all)")
+    return PRESETS[name]
+
+
 def preset(name: str, quick: bool = False) -> Experiment:
     """The experiment of a reaction-diffusion preset by name (see `PRESETS`, or `morphojax presets`)."""
-    if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r}; see `morphojax presets` (e.g. {', '.join(list(PRESETS)[:4])})")
-    item = PRESETS[name]
+    item = lookup(name)
     if not isinstance(item, ExperimentPreset):
         raise ValueError(f"preset {name!r} is a{'n' if item.kind[0] in 'aeiou' else ''} {item.kind} run, not an "
                          f"experiment: run it with `morphojax run {name}` or PRESETS[{name!r}].run()")

@@ -1,0 +1,113 @@
+"""What a newcomer meets: where files go, what commands print, render of every file kind,
+animations in one colour range, Ctrl-C, suggestions for unknown names, refused inputs."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+from PIL import Image
+
+import morphojax as mj
+from morphojax.cli import main
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """One quick preset run from a fresh folder with the default output path."""
+    import os
+
+    folder = tmp_path_factory.mktemp("fresh")
+    here = os.getcwd()
+    os.chdir(folder)
+    try:
+        code = main(["run", "fig4-r12-lb", "--quick", "--no-progress", "--gif", "movie.gif"])
+    finally:
+        os.chdir(here)
+    return code, folder
+
+
+def test_runs_write_under_out_and_say_so(quick_run, capsys):
+    code, folder = quick_run
+    assert code == 0
+    assert sorted(p.name for p in (folder / "out").iterdir()) == ["fig4-r12-lb.npz", "fig4-r12-lb.png"]
+    assert not list(folder.glob("*.png"))  # nothing in the working folder itself
+    movie = Image.open(folder / "movie.gif")
+    assert movie.n_frames > 4
+
+
+def test_quiet_prints_only_json(tmp_path, capsys):
+    assert main(["ca", "--size", "14", "--steps", "3", "--out", str(tmp_path / "c.png")]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["steps"] == 3 and "wrote" in err and "c.png" in err
+    assert main(["ca", "--size", "14", "--steps", "3", "--out", str(tmp_path / "c.png"), "--quiet"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["steps"] == 3 and err == ""
+
+
+def test_render_draws_every_file_kind(quick_run, tmp_path, capsys):
+    _, folder = quick_run
+    assert main(["render", str(folder / "out" / "fig4-r12-lb.npz"), "--out", str(tmp_path / "r.png")]) == 0
+    assert main(["ca", "--dim", "3", "--size", "14", "--steps", "2", "--out", str(tmp_path / "c3.png"), "--quiet"]) == 0
+    assert main(["render", str(tmp_path / "c3.npz"), "--out", str(tmp_path / "c3r.png")]) == 0
+    assert Image.open(tmp_path / "c3r.png").size == Image.open(tmp_path / "c3.png").size  # the same slices
+    sweep = mj.sweep(mj.Turing(scale=3.0), vary={"ratio": [4.0, 8.0]}, state=mj.paper_state(jax.random.key(0), (12, 12)),
+                     steps=20, dt=0.005, progress=False)
+    sweep.save_npz(tmp_path / "s.npz")
+    assert main(["render", str(tmp_path / "s.npz"), "--out", str(tmp_path / "s.png")]) == 0
+    assert Image.open(tmp_path / "s.png").size == sweep.montage().size
+    (tmp_path / "x.npz").write_bytes(b"not an archive")
+    assert main(["render", str(tmp_path / "x.npz"), "--out", str(tmp_path / "x.png")]) == 2
+    assert "is not a morphojax .npz file" in capsys.readouterr().err
+
+
+def test_unknown_names_suggest_the_closest(capsys):
+    assert main(["run", "girafe"]) == 2
+    assert "did you mean giraffe?" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="did you mean leopard"):
+        mj.preset("leopards")
+
+
+def test_ctrl_c_keeps_the_checkpoint_and_says_how_to_resume(tmp_path, monkeypatch, capsys):
+    real = mj.run_experiment
+
+    def interrupted(exp, **kwargs):
+        real(exp, **{**kwargs, "stop_after": kwargs["checkpoint_every"]})  # writes a checkpoint
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(mj, "run_experiment", interrupted)
+    out = tmp_path / "sp.png"
+    code = main(["run", "fig4-r12-lb", "--quick", "--checkpoint-every", "500", "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 130 and "Traceback" not in err
+    assert f"morphojax resume {out.with_suffix('.npz')}" in err
+    assert int(mj.load_npz(out.with_suffix(".npz"))[0].step) == 500
+
+
+def test_animation_has_one_colour_range(tmp_path):
+    frames = [np.full((4, 6), v) for v in (0.0, 0.5, 1.0)]
+    path = mj.save_animation(tmp_path / "a.gif", frames, cmap="gray")
+    movie = Image.open(path)
+    greys = []
+    for i in range(movie.n_frames):
+        movie.seek(i)
+        greys.append(movie.convert("RGB").getpixel((0, 0))[0])
+    assert greys[0] <= 2 and abs(greys[1] - 128) <= 2 and greys[2] >= 253  # not each frame stretched alone
+    with pytest.raises(ValueError, match="must end in one of"):
+        mj.save_animation(tmp_path / "a.avi", frames)
+    with pytest.raises(ValueError, match="2D array"):
+        mj.save_animation(tmp_path / "b.gif", [np.zeros((2, 2, 2))])
+    state = mj.paper_state(jax.random.key(0), (10, 10))
+    _, rolled = mj.rollout(mj.Turing(), state, steps=20, dt=0.01, every=5)
+    assert Image.open(mj.save_animation(tmp_path / "r.gif", rolled, species="b")).n_frames == 4
+
+
+def test_complex_concentrations_are_refused():
+    with pytest.raises(ValueError, match="species 0 is complex"):
+        mj.State.from_arrays([np.ones((3, 3)) * (1 + 2j)])
+
+
+def test_progress_bars_are_named_by_phase(capsys):
+    state = mj.paper_state(jax.random.key(0), (10, 10))
+    mj.simulate(mj.Turing(), state, steps=20, dt=0.01, progress="definition")
+    assert "definition" in capsys.readouterr().err
