@@ -25,10 +25,12 @@ from ._bounds import Barrier
 from ._checks import is_concrete
 from .domains import AbstractDomain, HexLattice, Lattice
 from ._growth import Growth, Source
-from .models import AbstractModel, Bard, Composite, GrayScott, Reinforcement, Turing
+from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott,
+                     Reaction, Reinforcement, Schnakenberg, Turing)
 from ._state import State
 
-MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement)}
+MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement, FitzHughNagumo, GiererMeinhardt,
+                                            Schnakenberg, Brusselator, Reaction)}  # Reaction: refuses to load (its function is code)
 
 
 def to_jsonable(value):

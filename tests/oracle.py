@@ -83,3 +83,28 @@ def insert_rows(fields, rows):
 def insert_cols(fields, cols):
     """Its new column: in every row i the cell at column cols[i] is duplicated."""
     return [np.stack([np.insert(f[i], cols[i], f[i, cols[i]]) for i in range(f.shape[0])]) for f in fields]
+
+
+# ---- the classic reactions (paper 003 section II.C and the Brusselator), standard forms ----
+def fitzhugh_nagumo_rates(u, v, a, b, eps, Du, Dv, boundary="wrap", stencil="nine-point"):
+    du = (a - u) * (u - 1.0) * u - v + Du * laplacian(u, boundary, stencil)
+    dv = eps * (b * u - v) + Dv * laplacian(v, boundary, stencil)
+    return du, dv
+
+
+def gierer_meinhardt_rates(u, v, rho, mu, nu, Du, Dv, boundary="wrap", stencil="nine-point"):
+    du = rho * (u * u / v - mu * u) + Du * laplacian(u, boundary, stencil)
+    dv = rho * (u * u - nu * v) + Dv * laplacian(v, boundary, stencil)
+    return du, dv
+
+
+def schnakenberg_rates(u, v, a, b, Du, Dv, boundary="wrap", stencil="nine-point"):
+    du = a - u + u * u * v + Du * laplacian(u, boundary, stencil)
+    dv = b - u * u * v + Dv * laplacian(v, boundary, stencil)
+    return du, dv
+
+
+def brusselator_rates(u, v, a, b, Du, Dv, boundary="wrap", stencil="nine-point"):
+    du = a - (b + 1.0) * u + u * u * v + Du * laplacian(u, boundary, stencil)
+    dv = b * u - u * u * v + Dv * laplacian(v, boundary, stencil)
+    return du, dv

@@ -7,8 +7,9 @@ two-species systems of the literature; `_reinforcement`; `_custom`: a user's own
 """
 
 from ._base import AbstractModel, AbstractReaction, per_species
-from ._classic import GrayScott
+from ._classic import Brusselator, FitzHughNagumo, GiererMeinhardt, GrayScott, Schnakenberg
 from ._composite import Composite
+from ._custom import Reaction, ReactionFunction
 from ._names import MODELS, model_from_name
 from ._reinforcement import Reinforcement
 from ._turing import Bard, Turing, bard_reaction
@@ -18,11 +19,17 @@ __all__ = [
     "AbstractReaction",
     "Bard",
     "bard_reaction",
+    "Brusselator",
     "Composite",
+    "FitzHughNagumo",
+    "GiererMeinhardt",
     "GrayScott",
     "MODELS",
     "model_from_name",
     "per_species",
+    "Reaction",
+    "ReactionFunction",
     "Reinforcement",
+    "Schnakenberg",
     "Turing",
 ]

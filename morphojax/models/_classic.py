@@ -1,3 +1,11 @@
+"""The classic two-species reaction-diffusion systems of the literature (paper 003 section
+II.C lists them): Gray-Scott, FitzHugh-Nagumo, Gierer-Meinhardt, Schnakenberg and the
+Brusselator, each in its standard form with (u, v) as species.
+
+Every rate is per unit of simulated time and every diffusion rate in cells^2 per unit
+time (see `_base`); `lower`/`upper` clamp (u, v) after every step.
+"""
+
 from __future__ import annotations
 
 import math
@@ -8,6 +16,15 @@ from jax import Array
 
 from .._checks import as_float_array, check_finite, check_range
 from ._base import AbstractReaction, check_limits, species_stack
+
+
+def _check_fields(model, free=(), nonnegative=()) -> None:
+    """Every named field finite; those in `nonnegative` (rates, diffusion rates) >= 0."""
+    who = type(model).__name__
+    for name in free + nonnegative:
+        check_finite(getattr(model, name), f"{who}.{name}")
+    for name in nonnegative:
+        check_range(getattr(model, name), f"{who}.{name}", low=0.0)
 
 
 class GrayScott(AbstractReaction):
@@ -34,9 +51,7 @@ class GrayScott(AbstractReaction):
         self.upper = species_stack(upper, 2, "GrayScott.upper")
 
     def __check_init__(self):
-        for name in ("feed", "kill", "du", "dv"):
-            check_finite(getattr(self, name), f"GrayScott.{name}")
-            check_range(getattr(self, name), f"GrayScott.{name}", low=0.0)
+        _check_fields(self, nonnegative=("feed", "kill", "du", "dv"))
         check_limits(self)
 
     def reaction(self, x):
@@ -46,3 +61,189 @@ class GrayScott(AbstractReaction):
 
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "GrayScott diffusion")
+
+
+class FitzHughNagumo(AbstractReaction):
+    """FitzHugh-Nagumo model as printed in paper 003 (section II.C.1):
+
+        du/dt = (a - u)(u - 1) u - v + Du lap(u)
+        dv/dt = epsilon (b u - v) + Dv lap(v)
+
+    u is the fast excitable variable with the cubic nullcline, v the slow recovery;
+    `epsilon` is the ratio of their time scales. u and v take negative values, so the
+    default limits are -inf and +inf (no clamp). The homogeneous state (0, 0) is an
+    activator (Turing-unstable for a fast enough inhibitor) when a < 0 < a + epsilon.
+
+    Defaults (chosen here from the linear stability of (0, 0), which is then the only
+    homogeneous state): a = -0.3, b = 0.45, epsilon = 0.35, Du = 0.1, Dv = 2 give spots of
+    wavelength about 8 cells on the nine-point stencil.
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("u", "v")
+    a: Array
+    b: Array
+    epsilon: Array
+    du: Array
+    dv: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, a=-0.3, b=0.45, epsilon=0.35, du=0.1, dv=2.0, lower=-math.inf, upper=math.inf):
+        self.a = as_float_array(a, "FitzHughNagumo.a")
+        self.b = as_float_array(b, "FitzHughNagumo.b")
+        self.epsilon = as_float_array(epsilon, "FitzHughNagumo.epsilon")
+        self.du = as_float_array(du, "FitzHughNagumo.du")
+        self.dv = as_float_array(dv, "FitzHughNagumo.dv")
+        self.lower = species_stack(lower, 2, "FitzHughNagumo.lower")
+        self.upper = species_stack(upper, 2, "FitzHughNagumo.upper")
+
+    def __check_init__(self):
+        _check_fields(self, free=("a", "b"), nonnegative=("epsilon", "du", "dv"))
+        check_limits(self)
+
+    def reaction(self, x):
+        u, v = x[0], x[1]
+        return jnp.stack([(self.a - u) * (u - 1.0) * u - v, self.epsilon * (self.b * u - v)])
+
+    def diffusion(self):
+        return species_stack((self.du, self.dv), 2, "FitzHughNagumo diffusion")
+
+
+class GiererMeinhardt(AbstractReaction):
+    """Gierer-Meinhardt activator-inhibitor model (Gierer and Meinhardt 1972), standard form:
+
+        du/dt = rho (u^2 / v - mu u) + Du lap(u)
+        dv/dt = rho (u^2 - nu v) + Dv lap(v)
+
+    u is the activator, v the inhibitor; `rho` sets the reaction speed, `mu` and `nu` the
+    decay rates. The homogeneous state is (nu / mu, nu / mu^2). Paper 003 (section II.C.2)
+    prints this model with two typos: the inhibitor appears as an undefined `h` (the
+    original paper's letter for it) in both equations, and the second reads
+    rho (V^2 - nu h), squaring the inhibitor instead of the activator; the form above is
+    the one its reference [6] and the literature use.
+
+    The reaction divides by v, so v's lower limit must be positive: by default 1e-3 (u's
+    is 0), and a lower limit <= 0 for v is refused.
+
+    Defaults (chosen here by linear stability: Turing-unstable needs nu > mu and
+    Dv mu / (Du nu) > (1 + sqrt 2)^2): rho = 1, mu = 1, nu = 2, Du = 0.5, Dv = 10 give spots
+    of wavelength about 7-8 cells around (2, 2).
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("u", "v")
+    rho: Array
+    mu: Array
+    nu: Array
+    du: Array
+    dv: Array
+    lower: Array
+    upper: Array
+
+    V_FLOOR: ClassVar[float] = 1e-3  # the default lower limit of v
+
+    def __init__(self, rho=1.0, mu=1.0, nu=2.0, du=0.5, dv=10.0, lower=(0.0, V_FLOOR), upper=math.inf):
+        self.rho = as_float_array(rho, "GiererMeinhardt.rho")
+        self.mu = as_float_array(mu, "GiererMeinhardt.mu")
+        self.nu = as_float_array(nu, "GiererMeinhardt.nu")
+        self.du = as_float_array(du, "GiererMeinhardt.du")
+        self.dv = as_float_array(dv, "GiererMeinhardt.dv")
+        self.lower = species_stack(lower, 2, "GiererMeinhardt.lower")
+        self.upper = species_stack(upper, 2, "GiererMeinhardt.upper")
+
+    def __check_init__(self):
+        _check_fields(self, nonnegative=("rho", "mu", "nu", "du", "dv"))
+        check_limits(self)
+        check_range(self.lower[1], "GiererMeinhardt.lower of v (the reaction divides by v)", low=0.0, low_open=True)
+
+    def reaction(self, x):
+        u, v = x[0], x[1]
+        uu = u * u
+        return jnp.stack([self.rho * (uu / v - self.mu * u), self.rho * (uu - self.nu * v)])
+
+    def diffusion(self):
+        return species_stack((self.du, self.dv), 2, "GiererMeinhardt diffusion")
+
+
+class Schnakenberg(AbstractReaction):
+    """Schnakenberg model (Schnakenberg 1979; paper 003 section II.C.3):
+
+        du/dt = a - u + u^2 v + Du lap(u)
+        dv/dt = b - u^2 v + Dv lap(v)
+
+    `a` and `b` are the constant supplies of u and v; the homogeneous state is
+    (a + b, b / (a + b)^2).
+
+    Defaults: a = 0.1, b = 0.9 (values common in textbook examples of this system,
+    checked here by linear stability), Du = 0.5, Dv = 10 (Dv / Du = 20 is above the Turing threshold 8.6; the
+    diffusion rates set a wavelength of about 8-9 cells); spots around (1, 0.9).
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("u", "v")
+    a: Array
+    b: Array
+    du: Array
+    dv: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, a=0.1, b=0.9, du=0.5, dv=10.0, lower=0.0, upper=math.inf):
+        self.a = as_float_array(a, "Schnakenberg.a")
+        self.b = as_float_array(b, "Schnakenberg.b")
+        self.du = as_float_array(du, "Schnakenberg.du")
+        self.dv = as_float_array(dv, "Schnakenberg.dv")
+        self.lower = species_stack(lower, 2, "Schnakenberg.lower")
+        self.upper = species_stack(upper, 2, "Schnakenberg.upper")
+
+    def __check_init__(self):
+        _check_fields(self, nonnegative=("a", "b", "du", "dv"))
+        check_limits(self)
+
+    def reaction(self, x):
+        u, v = x[0], x[1]
+        uuv = u * u * v
+        return jnp.stack([self.a - u + uuv, self.b - uuv])
+
+    def diffusion(self):
+        return species_stack((self.du, self.dv), 2, "Schnakenberg diffusion")
+
+
+class Brusselator(AbstractReaction):
+    """Brusselator (Prigogine and Lefever 1968), standard form; paper 003 only names it:
+
+        du/dt = a - (b + 1) u + u^2 v + Du lap(u)
+        dv/dt = b u - u^2 v + Dv lap(v)
+
+    The homogeneous state is (a, b / a); it oscillates (Hopf) for b > 1 + a^2 and is
+    Turing-unstable for b > (1 + a sqrt(Du / Dv))^2.
+
+    Defaults (chosen here between the two thresholds, 2.17 < b < 3.25 for a = 1.5 and
+    Dv / Du = 10): a = 1.5, b = 3, Du = 1, Dv = 10 give spots of wavelength about 7-9 cells.
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("u", "v")
+    a: Array
+    b: Array
+    du: Array
+    dv: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, a=1.5, b=3.0, du=1.0, dv=10.0, lower=0.0, upper=math.inf):
+        self.a = as_float_array(a, "Brusselator.a")
+        self.b = as_float_array(b, "Brusselator.b")
+        self.du = as_float_array(du, "Brusselator.du")
+        self.dv = as_float_array(dv, "Brusselator.dv")
+        self.lower = species_stack(lower, 2, "Brusselator.lower")
+        self.upper = species_stack(upper, 2, "Brusselator.upper")
+
+    def __check_init__(self):
+        _check_fields(self, nonnegative=("a", "b", "du", "dv"))
+        check_limits(self)
+
+    def reaction(self, x):
+        u, v = x[0], x[1]
+        uuv = u * u * v
+        return jnp.stack([self.a - (self.b + 1.0) * u + uuv, self.b * u - uuv])
+
+    def diffusion(self):
+        return species_stack((self.du, self.dv), 2, "Brusselator diffusion")

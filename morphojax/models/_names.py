@@ -3,18 +3,25 @@
 from __future__ import annotations
 
 from ._base import AbstractModel
-from ._classic import GrayScott
+from ._classic import Brusselator, FitzHughNagumo, GiererMeinhardt, GrayScott, Schnakenberg
 from ._reinforcement import Reinforcement
 from ._turing import Bard, Turing
 
-MODELS = {"turing": Turing, "bard": Bard, "gray-scott": GrayScott, "reinforcement": Reinforcement}
+MODELS = {
+    "turing": Turing, "bard": Bard, "gray-scott": GrayScott, "reinforcement": Reinforcement,
+    "fitzhugh-nagumo": FitzHughNagumo, "gierer-meinhardt": GiererMeinhardt, "schnakenberg": Schnakenberg,
+    "brusselator": Brusselator,
+}
+_SPELLINGS = {"grayscott": "gray-scott", "fitzhughnagumo": "fitzhugh-nagumo", "fhn": "fitzhugh-nagumo",
+              "gierermeinhardt": "gierer-meinhardt"}
 
 
 def model_from_name(name: str, **params) -> AbstractModel:
-    """Build a model from its command-line name (`turing`, `bard`, `gray-scott`, `reinforcement`)."""
+    """Build a model from its command-line name (the keys of `MODELS`, e.g. `turing`,
+    `gray-scott`, `fitzhugh-nagumo`; the class names work too: `GrayScott`, `FitzHughNagumo`). A
+    user's `Reaction` has no name: it needs its function."""
     key = name.lower().replace("_", "-")
-    if key == "grayscott":
-        key = "gray-scott"
+    key = _SPELLINGS.get(key, key)
     if key not in MODELS:
         raise ValueError(f"unknown model {name!r}; allowed: {', '.join(MODELS)}")
     model = MODELS[key]()

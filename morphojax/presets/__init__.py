@@ -14,6 +14,7 @@ from ._registry import (PRESETS, AutomatonPreset, ExperimentPreset, Preset, look
                         registered)
 from ._experiments import FIG4_RATIOS, leopard_row_weights
 from . import _automata  # noqa: F401  (registers the automaton presets)
+from . import _reactions  # noqa: F401  (registers the classic reactions' Turing patterns)
 from . import _lattices  # noqa: F401  (registers the square/hexagonal lattice presets)
 from ._automaton_outputs import run_automaton, run_life_like
 

@@ -1,0 +1,53 @@
+"""The classic reactions of paper 003 section II.C (and the Brusselator it names) forming
+their Turing patterns: `morphojax run fitzhugh-nagumo`, `gierer-meinhardt`, `schnakenberg`,
+`brusselator`.
+
+Paper 003 prints the equations but no parameters or pictures, so each preset runs the
+model's defaults (see their docstrings: values inside the Turing-unstable regime, chosen by
+the linear stability of the homogeneous state, wavelength about 7-9 cells on the
+nine-point stencil) from that homogeneous state with 1% uniform noise, on a wrapping
+128x128 lattice to simulated time 150; `quick`: 48x48 to time 60, where the spots have
+formed but still move. dt is about half the diffusion limit, for the reaction's own
+stiffness at the spots' peaks.
+"""
+
+from __future__ import annotations
+
+from .._experiment import Experiment, Initial, Phase
+from ..models import Brusselator, FitzHughNagumo, GiererMeinhardt, Schnakenberg
+from ._registry import ExperimentPreset, register
+
+REACTIONS = {
+    # name: (model class, homogeneous state (u, v), dt, what)
+    "fitzhugh-nagumo": (FitzHughNagumo, (0.0, 0.0), 0.15, "FitzHugh-Nagumo (paper 003 II.C.1): spots"),
+    "gierer-meinhardt": (GiererMeinhardt, (2.0, 2.0), 0.035, "Gierer-Meinhardt activator-inhibitor: spots"),
+    "schnakenberg": (Schnakenberg, (1.0, 0.9), 0.02, "Schnakenberg (paper 003 II.C.3): spots"),
+    "brusselator": (Brusselator, (1.5, 2.0), 0.02, "Brusselator (named in paper 003 II.C): spots"),
+}
+NOISE = 0.01  # relative half-width of the uniform noise around the homogeneous state
+TIME, QUICK_TIME = 150.0, 60.0
+
+
+def _noisy(value):
+    spread = NOISE * max(abs(value), 1.0)
+    return (value - spread, value + spread)
+
+
+def _reaction(name, cls, steady, dt, what):
+    def build(quick):
+        shape, T = ((48, 48), QUICK_TIME) if quick else ((128, 128), TIME)
+        model = cls()
+        return Experiment(
+            name=name,
+            initial=Initial("uniform", shape, params=tuple(_noisy(v) for v in steady), names=model.species),
+            phases=(Phase(model, steps=int(round(T / dt)), dt=dt, frames=4, name="static"),),
+            description=f"{what}; defaults of mj.{cls.__name__}, from ({steady[0]:g}, {steady[1]:g}) "
+                        f"with {NOISE:.0%} noise, T = {T:g}, dt = {dt:g}",
+            figure="paper 003 section II.C (equations only)", show="u",
+        )
+
+    return build
+
+
+for _name, (_cls, _steady, _dt, _what) in REACTIONS.items():
+    register(ExperimentPreset(_name, _what, "paper 003 section II.C", _reaction(_name, _cls, _steady, _dt, _what)))
