@@ -8,11 +8,12 @@ six neighbours at unit distance:
 - for even r: (r - 1, c - 1), (r - 1, c), (r + 1, c - 1), (r + 1, c),
 - for odd r:  (r - 1, c), (r - 1, c + 1), (r + 1, c), (r + 1, c + 1).
 
-The carried layout is the fields with one ring of ghost cells (as on the square lattice):
-"wrap" copies the opposite edges (a torus; the ghost row above row 0 is the last row, so
-the row parity only stays consistent with an even number of rows); "no-flux" pads with
-zeros and subtracts u once per neighbour that exists, which drops every link that would
-leave the lattice (pure diffusion then conserves mass exactly).
+The carried layout is the fields with one ring of ghost cells copied from the opposite
+edges (as on the square lattice). "wrap" uses them: a torus (the ghost row above row 0 is
+the last row, so the row parity only stays consistent with an even number of rows).
+"no-flux" ignores them: it sums only the neighbours that exist and subtracts u once per
+neighbour, which drops every link that would leave the lattice (pure diffusion then
+conserves mass exactly).
 """
 
 from __future__ import annotations
@@ -39,22 +40,37 @@ _OPERATOR_ALIASES = {"lap": "laplacian", "neighbour-sum": "sum", "neighbor-sum":
 ROW_HEIGHT = math.sqrt(3.0) / 2.0  # distance between rows, in cells
 
 
-def neighbour_sum(p, xp=jnp):
+def neighbour_sum(p, xp=jnp, links=None):
     """Sum over each interior cell's six neighbours in a ghost-padded odd-r array `p`
-    (..., rows + 2, cols + 2). `xp` is jax.numpy or numpy."""
+    (..., rows + 2, cols + 2). `xp` is jax.numpy or numpy. With `links` (see `links`) a
+    neighbour counts only where its link exists (the ghost cells' values then do not matter)."""
     rows = p.shape[-2] - 2
     even = (np.arange(rows) % 2 == 0)[:, None]  # static: the layout's row parity
     up, down, mid = p[..., :-2, :], p[..., 2:, :], p[..., 1:-1, :]
-    same = mid[..., :-2] + mid[..., 2:] + up[..., 1:-1] + down[..., 1:-1]
-    # even rows reach the column to the left in the rows above and below, odd rows the right
-    return same + xp.where(even, up[..., :-2] + down[..., :-2], up[..., 2:] + down[..., 2:])
+    if links is None:
+        same = mid[..., :-2] + mid[..., 2:] + up[..., 1:-1] + down[..., 1:-1]
+        # even rows reach the column to the left in the rows above and below, odd rows the right
+        return same + xp.where(even, up[..., :-2] + down[..., :-2], up[..., 2:] + down[..., 2:])
+    has_up, has_down, has_left, has_right = links
+    same = mid[..., :-2] * has_left + mid[..., 2:] * has_right + up[..., 1:-1] * has_up + down[..., 1:-1] * has_down
+    return same + xp.where(even, (up[..., :-2] * has_up + down[..., :-2] * has_down) * has_left,
+                           (up[..., 2:] * has_up + down[..., 2:] * has_down) * has_right)
 
 
-def neighbour_count(shape, boundary: str) -> np.ndarray:
+def links(shape):
+    """1.0 where a (rows, cols) lattice has a neighbour above, below, left and right of a
+    cell (as a column, a column, a row and a row vector): the no-flux lattice's links."""
+    rows, cols = int(shape[-2]), int(shape[-1])
+    r, c = np.arange(rows)[:, None], np.arange(cols)[None, :]
+    return (r > 0).astype(float), (r < rows - 1).astype(float), (c > 0).astype(float), (c < cols - 1).astype(float)
+
+
+def neighbour_count(shape, boundary: str, xp=np):
     """Number of neighbours of each cell of a (rows, cols) lattice (6 everywhere on a torus)."""
     if boundary == "wrap":
-        return np.full(shape, 6.0)
-    return neighbour_sum(np.pad(np.ones(shape), 1), np)
+        return 6.0
+    rows, cols = int(shape[-2]), int(shape[-1])
+    return neighbour_sum(np.ones((rows + 2, cols + 2)), np, links(shape))
 
 
 class HexLattice(AbstractDomain):
@@ -109,14 +125,21 @@ class HexLattice(AbstractDomain):
             raise ValueError(f"HexLattice needs at least 2 rows and 2 columns (got {rows} x {cols})")
 
     def _pad(self, x):
+        # both boundaries carry wrapped ghost cells; no-flux masks the links to them, which
+        # keeps the step one fused loop on XLA:CPU as on the torus (zero ghosts make XLA fuse
+        # the whole step into the padding, about 3x slower: benchmarks/results/bench_domains.md)
         self.check_shape(x.shape)
         widths = [(0, 0)] * (x.ndim - 2) + [(1, 1), (1, 1)]
-        return jnp.pad(x, widths, mode="wrap" if self.boundary == "wrap" else "constant")
+        return jnp.pad(x, widths, mode="wrap")
 
     def _operator_padded(self, p):
         x = p[..., 1:-1, 1:-1]
-        n = jnp.asarray(neighbour_count(x.shape[-2:], self.boundary), x.dtype)
-        s = neighbour_sum(p) - n * x
+        if self.boundary == "wrap":
+            s = neighbour_sum(p) - 6.0 * x
+        else:
+            mask = tuple(jnp.asarray(v, x.dtype) for v in links(x.shape))
+            count = jnp.asarray(neighbour_count(x.shape, self.boundary), x.dtype)
+            s = neighbour_sum(p, jnp, mask) - count * x
         return s * (2.0 / 3.0) if self.operator == "laplacian" else s
 
     # ---- what the stepping loop uses ---------------------------------------------------
