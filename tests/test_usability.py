@@ -111,3 +111,35 @@ def test_progress_bars_are_named_by_phase(capsys):
     state = mj.paper_state(jax.random.key(0), (10, 10))
     mj.simulate(mj.Turing(), state, steps=20, dt=0.01, progress="definition")
     assert "definition" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("crash_at", [1, 3, 5])
+def test_a_crash_while_writing_a_checkpoint_keeps_the_last_one(tmp_path, monkeypatch, crash_at):
+    """Killed during its k-th checkpoint write, a run leaves checkpoint k - 1 intact, and
+    resuming it gives the uninterrupted run's arrays to the bit (also across growth)."""
+    exp = mj.Experiment("crash", mj.Initial("paper", (16, 16), capacity=(20, 20)), phases=(
+        mj.Phase(mj.Turing(4.0, 1.0), steps=200, dt=0.01, name="still"),
+        mj.Phase(mj.Turing(4.0, 1.0), steps=400, dt=0.01, growth=mj.Growth(rate=1.0), name="growing")))
+    whole = mj.run_experiment(exp, seed=3)
+    path, real, writes = tmp_path / "ck.npz", np.savez_compressed, []
+
+    def killed_on_a_write(handle, **arrays):
+        writes.append(1)
+        if len(writes) == crash_at:
+            handle.write(b"half an archive")
+            raise OSError("killed while writing")
+        return real(handle, **arrays)
+
+    monkeypatch.setattr(np, "savez_compressed", killed_on_a_write)
+    with pytest.raises(OSError, match="killed"):
+        mj.run_experiment(exp, seed=3, checkpoint_path=path, checkpoint_every=100)
+    monkeypatch.undo()
+    assert [p.name for p in tmp_path.iterdir()] == ([] if crash_at == 1 else ["ck.npz"])  # no temporary left
+    if crash_at == 1:
+        assert not path.exists()  # nothing was ever complete: nothing half-written either
+        return
+    state, _ = mj.load_npz(path)
+    assert int(state.step) == 100 * (crash_at - 1)
+    resumed = mj.run_experiment(exp, resume=path)
+    np.testing.assert_array_equal(np.asarray(resumed.state.fields), np.asarray(whole.state.fields))
+    assert resumed.state.shape == whole.state.shape == (20, 20)
