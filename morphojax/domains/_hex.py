@@ -65,7 +65,7 @@ def links(shape):
     return (r > 0).astype(float), (r < rows - 1).astype(float), (c > 0).astype(float), (c < cols - 1).astype(float)
 
 
-def neighbour_count(shape, boundary: str, xp=np):
+def neighbour_count(shape, boundary: str):
     """Number of neighbours of each cell of a (rows, cols) lattice (6 everywhere on a torus)."""
     if boundary == "wrap":
         return 6.0
