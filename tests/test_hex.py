@@ -75,6 +75,12 @@ def test_spectral_radii_against_eigenvalues():
     # the dt limit follows from the radius in the one place it is computed
     assert moore.max_stable_dt(0.06) == pytest.approx(2.0 / (12.0 * 0.06))
     assert mj.HexLattice(operator="sum").max_stable_dt(0.06) == pytest.approx(2.0 / (9.0 * 0.06))
+    # thesis Fig. 5.9 ran Du 0.40 at dt 0.4 and Du 0.80 at dt 0.2: within the Moore sum's
+    # limit, beyond the nine-point stencil's for the converted rates (3 x Du)
+    moore.check_dt(0.4, 0.40)
+    moore.check_dt(0.2, 0.80)
+    with pytest.raises(ValueError, match="largest stable dt is 0.3125"):
+        mj.Lattice("nine-point").check_dt(0.4, 3 * 0.40)
     with pytest.raises(ValueError, match="hexagonal lattice neighbour sum"):
         mj.HexLattice(operator="sum").check_dt(3.8, 0.06)
 
