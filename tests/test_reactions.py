@@ -221,6 +221,16 @@ def test_reaction_is_recorded_as_not_resumable():
         mj.model_from_dict(data)
 
 
+@pytest.mark.parametrize("name", list(CASES))
+def test_homogeneous_state_is_a_fixed_point(name):
+    cls, params, rates, *_ = CASES[name]
+    model = cls(**params)
+    steady = [np.full((4, 4), float(v)) for v in model.homogeneous_state()]
+    for r in rates(*steady, *params.values()):  # the oracle's rates vanish there
+        assert np.abs(r).max() < 1e-6
+    assert float(jnp.abs(model.reaction(jnp.stack([jnp.asarray(v, jnp.float32) for v in steady]))).max()) < 1e-5
+
+
 def test_model_from_name_knows_the_new_models():
     for name, (cls, *_) in CASES.items():
         assert type(mj.model_from_name(name)) is cls

@@ -108,6 +108,11 @@ class FitzHughNagumo(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "FitzHughNagumo diffusion")
 
+    def homogeneous_state(self):
+        """(u, v) where the reaction vanishes: (0, 0), the only one when (a + 1)^2 < 4 (a + b)."""
+        zero = jnp.zeros_like(self.a * self.b)
+        return zero, zero
+
 
 class GiererMeinhardt(AbstractReaction):
     """Gierer-Meinhardt activator-inhibitor model (Gierer and Meinhardt 1972), standard form:
@@ -163,6 +168,10 @@ class GiererMeinhardt(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "GiererMeinhardt diffusion")
 
+    def homogeneous_state(self):
+        """(u, v) = (nu / mu, nu / mu^2), where the reaction vanishes."""
+        return self.nu / self.mu, self.nu / self.mu**2
+
 
 class Schnakenberg(AbstractReaction):
     """Schnakenberg model (Schnakenberg 1979; paper 003 section II.C.3):
@@ -206,6 +215,11 @@ class Schnakenberg(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "Schnakenberg diffusion")
 
+    def homogeneous_state(self):
+        """(u, v) = (a + b, b / (a + b)^2), where the reaction vanishes."""
+        total = self.a + self.b
+        return total, self.b / total**2
+
 
 class Brusselator(AbstractReaction):
     """Brusselator (Prigogine and Lefever 1968), standard form; paper 003 only names it:
@@ -247,3 +261,7 @@ class Brusselator(AbstractReaction):
 
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "Brusselator diffusion")
+
+    def homogeneous_state(self):
+        """(u, v) = (a, b / a), where the reaction vanishes."""
+        return self.a, self.b / self.a

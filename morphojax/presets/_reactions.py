@@ -18,11 +18,11 @@ from ..models import Brusselator, FitzHughNagumo, GiererMeinhardt, Schnakenberg
 from ._registry import ExperimentPreset, register
 
 REACTIONS = {
-    # name: (model class, homogeneous state (u, v), dt, what)
-    "fitzhugh-nagumo": (FitzHughNagumo, (0.0, 0.0), 0.15, "FitzHugh-Nagumo (paper 003 II.C.1): spots"),
-    "gierer-meinhardt": (GiererMeinhardt, (2.0, 2.0), 0.035, "Gierer-Meinhardt activator-inhibitor: spots"),
-    "schnakenberg": (Schnakenberg, (1.0, 0.9), 0.02, "Schnakenberg (paper 003 II.C.3): spots"),
-    "brusselator": (Brusselator, (1.5, 2.0), 0.02, "Brusselator (named in paper 003 II.C): spots"),
+    # name: (model class, dt, what)
+    "fitzhugh-nagumo": (FitzHughNagumo, 0.15, "FitzHugh-Nagumo (paper 003 II.C.1): spots and short stripes"),
+    "gierer-meinhardt": (GiererMeinhardt, 0.035, "Gierer-Meinhardt activator-inhibitor: hexagonal spots"),
+    "schnakenberg": (Schnakenberg, 0.02, "Schnakenberg (paper 003 II.C.3): hexagonal spots"),
+    "brusselator": (Brusselator, 0.02, "Brusselator (named in paper 003 II.C): hexagonal spots"),
 }
 NOISE = 0.01  # relative half-width of the uniform noise around the homogeneous state
 TIME, QUICK_TIME = 150.0, 60.0
@@ -33,10 +33,11 @@ def _noisy(value):
     return (value - spread, value + spread)
 
 
-def _reaction(name, cls, steady, dt, what):
+def _reaction(name, cls, dt, what):
     def build(quick):
         shape, T = ((48, 48), QUICK_TIME) if quick else ((128, 128), TIME)
         model = cls()
+        steady = [float(v) for v in model.homogeneous_state()]
         return Experiment(
             name=name,
             initial=Initial("uniform", shape, params=tuple(_noisy(v) for v in steady), names=model.species),
@@ -49,5 +50,5 @@ def _reaction(name, cls, steady, dt, what):
     return build
 
 
-for _name, (_cls, _steady, _dt, _what) in REACTIONS.items():
-    register(ExperimentPreset(_name, _what, "paper 003 section II.C", _reaction(_name, _cls, _steady, _dt, _what)))
+for _name, (_cls, _dt, _what) in REACTIONS.items():
+    register(ExperimentPreset(_name, _what, "paper 003 section II.C", _reaction(_name, _cls, _dt, _what)))
