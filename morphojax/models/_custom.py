@@ -13,10 +13,12 @@ compiles and `jax.jit`, `jax.vmap` and `jax.grad` go through it and its paramete
 through a built-in model's.
 
 Files: the function is code, not data. A result, phase or sweep saved with a `Reaction`
-records its parameters and, in place of the function, {"function": "module.qualname",
-"resumable": false}; reading such a file back (`mj.model_from_dict`, resuming an
-experiment, `mj.load_sweep`) raises a ValueError saying so. Rebuild the model with the
-same function and `model.replace(**saved_parameters)` to go on from its arrays.
+is written (its arrays and its model's numbers: "params", "rates", "lower", "upper"), with,
+in place of the function, {"function": "module.qualname", "species": [...], "resumable":
+false}; reading the model back from such a file (`mj.model_from_dict`, resuming an
+experiment, `mj.load_sweep`) raises a ValueError that says so. To go on, rebuild
+`Reaction(fn, saved["params"], saved["rates"], species=..., lower=..., upper=...)` with the
+same function and run it from the saved arrays (`mj.load_npz`).
 """
 
 from __future__ import annotations
