@@ -8,6 +8,7 @@ thesis's `colormap slot` commands, e.g. `Gradient([(0.0, "white"), (1.0, "#5b350
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -16,6 +17,7 @@ import numpy as np
 from PIL import Image, ImageColor, ImageDraw, ImageFont
 
 from . import _colormap_data
+from .domains import HexLattice
 
 
 def _hex_table(chunks) -> np.ndarray:
@@ -132,6 +134,19 @@ def save_png(path, image_or_array, **kwargs) -> None:
     img.save(path, format="PNG")
 
 
+LABEL_SIZE = 11  # pixels: the labels' font (Pillow's own scalable font where it has one)
+
+
+@functools.lru_cache(maxsize=None)
+def label_font():
+    """The font of every label and title: Pillow's scalable default at `LABEL_SIZE` (its
+    fixed bitmap font, whose spaces are a pixel wide, only where Pillow has no other)."""
+    try:
+        return ImageFont.load_default(size=LABEL_SIZE)
+    except (TypeError, OSError):  # Pillow < 10.1, or built without FreeType
+        return ImageFont.load_default()
+
+
 def montage(images: Sequence[Image.Image], ncols: int, *, row_labels=None, col_labels=None, title=None,
             pad: int = 4, background="white") -> Image.Image:
     """Lay images out on a grid with optional row/column labels and a title (pillow only)."""
@@ -141,7 +156,7 @@ def montage(images: Sequence[Image.Image], ncols: int, *, row_labels=None, col_l
     nrows = -(-len(images) // ncols)
     w = max(im.width for im in images)
     h = max(im.height for im in images)
-    font = ImageFont.load_default()
+    font = label_font()
     probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
 
     def text_size(t):
@@ -151,7 +166,7 @@ def montage(images: Sequence[Image.Image], ncols: int, *, row_labels=None, col_l
     left = max((text_size(t)[0] for t in row_labels), default=0) + 2 * pad if row_labels else 0
     top = (max((text_size(t)[1] for t in col_labels), default=0) + 2 * pad) if col_labels else 0
     title_h = text_size(title)[1] + 2 * pad if title else 0
-    width = left + ncols * (w + pad) + pad
+    width = max(left + ncols * (w + pad) + pad, text_size(title)[0] + 2 * pad if title else 0)  # titles whole
     height = title_h + top + nrows * (h + pad) + pad
     canvas = Image.new("RGB", (width, height), background)
     draw = ImageDraw.Draw(canvas)
@@ -170,14 +185,14 @@ def montage(images: Sequence[Image.Image], ncols: int, *, row_labels=None, col_l
 
 
 def tile_montage(arrays, unstable, *, captions=None, row_labels=None, col_labels=None, title=None, cmap="inferno",
-                 scale: int | None = None, vmin=None, vmax=None) -> Image.Image:
+                 scale: int | None = None, vmin=None, vmax=None, marks=None) -> Image.Image:
     """2D arrays (n, rows, cols) as one labelled picture, e.g. the members of a parameter grid.
 
     With `captions` (one per array) the tiles are captioned and laid out on a near-square
     grid; otherwise `col_labels` gives the number of columns and `row_labels` (optional)
     the rows. Each tile is normalised on its own unless vmin/vmax are given; arrays marked
-    `unstable` or not finite are grey tiles marked "NaN". `scale` defaults to about 80
-    pixels per tile.
+    `unstable` or not finite are grey tiles marked "NaN"; `marks` (a word or "" per tile,
+    e.g. "uniform") are written on their tiles. `scale` defaults to about 80 pixels per tile.
     """
     data = np.asarray(arrays)
     if scale is None:
@@ -189,6 +204,8 @@ def tile_montage(arrays, unstable, *, captions=None, row_labels=None, col_labels
             tiles.append(_nan_tile(x.shape, scale))
         else:
             tiles.append(to_image(x, cmap=cmap, vmin=vmin, vmax=vmax, scale=scale))
+            if marks is not None and marks[i]:
+                _mark(tiles[-1], marks[i])
     if captions is not None:
         ncols = max(1, math.ceil(math.sqrt(len(data))))
         tiles = [_captioned(t, text) for t, text in zip(tiles, captions)]
@@ -202,8 +219,16 @@ def _nan_tile(shape, scale):
     return img
 
 
+def _mark(img, text):
+    """Write `text` on a tile, on a white box in its top-left corner (in place)."""
+    draw = ImageDraw.Draw(img)
+    box = draw.textbbox((2, 2), text, font=label_font())
+    draw.rectangle((box[0] - 1, box[1] - 1, box[2] + 1, box[3] + 1), fill="white")
+    draw.text((2, 2), text, fill="black", font=label_font())
+
+
 def _captioned(img, text):
-    font = ImageFont.load_default()
+    font = label_font()
     box = ImageDraw.Draw(img).textbbox((0, 0), text, font=font)
     w, h = max(img.width, box[2] - box[0] + 4), img.height + box[3] - box[1] + 6
     canvas = Image.new("RGB", (w, h), "white")
@@ -218,7 +243,7 @@ def map_image(array, x=None, y=None, cmap="inferno", scale: int = 2, title=None)
     `x` and `y` are the `(name, start, stop)` given to `parameter_map`.
     """
     img = to_image(np.asarray(array), cmap=cmap, scale=scale)
-    font = ImageFont.load_default()
+    font = label_font()
     probe = ImageDraw.Draw(img)
 
     def size(t):
@@ -273,4 +298,8 @@ def render_experiment(state, experiment, scale: int = 1, vmin=None, vmax=None) -
     colour range (e.g. one range for all frames of a movie) where the picture has none."""
     array, style = experiment_picture(state, experiment)
     style = {"vmin": vmin, "vmax": vmax} | style
+    if isinstance(experiment.phases[-1].domain, HexLattice):  # hexagons, not a sheared grid
+        from ._render_hex import hex_image
+
+        return hex_image(array, scale=max(2, 8 * scale), **style)
     return to_image(array, scale=scale, **style)

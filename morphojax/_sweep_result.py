@@ -148,26 +148,37 @@ class SweepResult:
         return Member(i, vals, model, state, float(np.asarray(dt)), key, growth, config)
 
     # ---- pictures and files ----
-    def montage(self, species=-1, cmap="inferno", scale: int | None = None, vmin=None, vmax=None, title=None):
+    def montage(self, species=-1, cmap="inferno", scale: int | None = None, vmin=None, vmax=None, title=None,
+                per_tile: bool = False):
         """The batch as one labelled image (pillow): a grid like the paper's Figs. 4 and 5.
 
         2D grids: rows = first parameter, columns = second; 1D: one row; more axes: the last
         is the columns and the others combine into rows; explicit lists: captioned tiles.
-        Each tile is normalised on its own (as the papers do) unless vmin/vmax are given;
-        unstable members are grey tiles marked "NaN".
+        All tiles share one colour range (that of the stable members, or vmin/vmax), so the
+        picture agrees with the table; `per_tile=True` normalises each tile on its own (as
+        the papers' figures do). Unstable members are grey tiles marked "NaN"; members the
+        table calls uniform are marked so. Column values are shown to 3 significant digits.
         """
         k = species_index(self.species, species)
         data = self.arrays()[..., k, :, :].reshape((len(self),) + self.arrays().shape[-2:])
         unstable = self.blowup_step >= 0
-        draw = dict(title=title or self._title(species), cmap=cmap, scale=scale, vmin=vmin, vmax=vmax)
+        if not per_tile:
+            stable = data[~unstable]
+            finite = stable[np.isfinite(stable)]
+            vmin = (float(finite.min()) if finite.size else None) if vmin is None else vmin
+            vmax = (float(finite.max()) if finite.size else None) if vmax is None else vmax
+        marks = [row.get("pattern", "") == "uniform" and "uniform" or "" for row in self.table] if self.table else None
+        draw = dict(title=title or self._title(species), cmap=cmap, scale=scale, vmin=vmin, vmax=vmax, marks=marks)
         if self.axes is None:
             captions = [label({n: self.values[n][i] for n in self.names}) for i in range(len(self))]
             return tile_montage(data, unstable, captions=captions, **draw)
         last = self.names[-1]
-        col_labels = [f"{last}={v:g}" for v in self.axes[-1]]
+        draw["title"] = f"{draw['title']} | columns: {last}"
+        col_labels = [f"{v:.3g}" for v in self.axes[-1]]
         if len(self.axes) == 1:
             return tile_montage(data, unstable, col_labels=col_labels, **draw)
-        row_labels = [label(dict(zip(self.names[:-1], combo))) for combo in itertools.product(*self.axes[:-1])]
+        row_labels = [", ".join(f"{n}={v:.3g}" for n, v in zip(self.names[:-1], combo))
+                      for combo in itertools.product(*self.axes[:-1])]
         return tile_montage(data, unstable, row_labels=row_labels, col_labels=col_labels, **draw)
 
     def _title(self, species):

@@ -30,7 +30,7 @@ def state():
         (lambda: mj.Turing(lower=(-np.inf, np.inf)), r"Turing\.lower must be finite or -inf"),
         (lambda: mj.Turing(lower=(0.0, 1.0, 2.0)), r"Turing\.lower needs 2 values"),
         (lambda: mj.Turing(ratio="fast"), r"Turing\.ratio must be a number"),
-        (lambda: mj.model_from_name("brusselator"), r"unknown model 'brusselator'.*turing"),
+        (lambda: mj.model_from_name("oregonator"), r"unknown model 'oregonator'.*turing"),
         (lambda: mj.Turing().replace(colour=1.0), r"no parameter 'colour'.*ratio"),
     ],
 )

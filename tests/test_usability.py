@@ -143,3 +143,21 @@ def test_a_crash_while_writing_a_checkpoint_keeps_the_last_one(tmp_path, monkeyp
     resumed = mj.run_experiment(exp, resume=path)
     np.testing.assert_array_equal(np.asarray(resumed.state.fields), np.asarray(whole.state.fields))
     assert resumed.state.shape == whole.state.shape == (20, 20)
+
+
+def test_sweep_montage_agrees_with_its_table():
+    """One colour range for every tile (a uniform member keeps its level, not stretched to
+    black), the table's "uniform" marked on the tile, values to 3 significant digits."""
+    res = mj.sweep(mj.Turing(scale=3.0), vary={"ratio": [1.0, 12.3456]}, state=mj.paper_state(jax.random.key(0), (16, 16)),
+                   steps=1500, dt=0.008, progress=False)
+    assert [row["pattern"] for row in res.table][0] == "uniform"
+    b = res.arrays()[:, 1]
+    level = float(b[0].mean())
+    expected = mj.to_image(np.full((1, 1), level), vmin=float(b.min()), vmax=float(b.max())).getpixel((0, 0))
+    def near(img):  # pixels within a few levels of the uniform member's colour
+        return (np.abs(np.asarray(img, int) - np.asarray(expected)) <= 6).all(axis=-1).sum()
+
+    shared = np.asarray(res.montage(scale=4))
+    assert near(shared) > 64 * 64 // 2  # the uniform tile at its level
+    assert near(res.montage(scale=4, per_tile=True)) < 64 * 64 // 2  # stretched on its own
+    assert (shared == 255).all(axis=-1).any()  # the white box of the "uniform" mark
