@@ -19,7 +19,9 @@ from morphojax import montage, render_experiment
 
 HERE = Path(__file__).resolve().parent
 NAMES = ["whipray", "honeycomb-whipray", "frog", "squirrel", "leopard", "reinforcement-growth", "giraffe",
-         "nudibranch", "gray-scott-mitosis", "gray-scott-coral", "gray-scott-worms", "gray-scott-holes"]
+         "nudibranch", "gray-scott-mitosis", "gray-scott-coral", "gray-scott-worms", "gray-scott-holes",
+         "fitzhugh-nagumo", "gierer-meinhardt", "schnakenberg", "brusselator", "thesis-fig5.10-square",
+         "thesis-fig5.10-hex"]
 GROUPS = ["fig4", "development"]
 
 
@@ -64,7 +66,12 @@ def main():
                      "wavelength": d.wavelength, "spots": d.spots, "spot_area": d.spot_area, "holes": d.holes,
                      "dark_fraction": d.dark_fraction, "seconds": seconds})
         print(json.dumps(rows[-1]), flush=True)
-    (HERE / "results" / "gallery.json").write_text(json.dumps(rows, indent=1))
+    # a run of some presets updates their rows and keeps the others'
+    table = HERE / "results" / "gallery.json"
+    kept = {r["preset"]: r for r in (json.loads(table.read_text()) if table.exists() else [])}
+    kept.update({r["preset"]: r for r in rows})
+    rows = [kept[n] for n in NAMES + GROUPS if n in kept] + [r for n, r in kept.items() if n not in NAMES + GROUPS]
+    table.write_text(json.dumps(rows, indent=1))
     lines = ["| preset | paper figure | final size | pattern (shown species) | wavelength | spots / holes | time (s) |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:

@@ -84,10 +84,22 @@ def gray_scott_state(key, shape, square=0.2, noise=0.02, capacity=None) -> State
     return State.from_arrays([u, v], capacity=capacity, names=("u", "v"))
 
 
+STEADY_NOISE = 0.01  # relative half-width of the noise around a homogeneous state
+
+
+def around(value: float, noise: float = STEADY_NOISE) -> tuple[float, float]:
+    """The uniform range `value` +- noise max(|value|, 1): a homogeneous state with small
+    noise (absolute near 0, where a relative range would vanish)."""
+    spread = noise * max(abs(value), 1.0)
+    return (value - spread, value + spread)
+
+
 def initial_state(model, key, shape, capacity=None) -> State:
     """The customary random start for `model`: see `paper_state`, `gray_scott_state`.
 
-    Reinforcement starts uniform in [t - w, t + w); composites stack their parts' starts.
+    Reinforcement starts uniform in [t - w, t + w); the classic reactions (FitzHugh-Nagumo,
+    Gierer-Meinhardt, Schnakenberg, Brusselator) at their homogeneous state with `around`'s
+    noise; composites stack their parts' starts.
     """
     from .models import Bard, Composite, GrayScott, Reinforcement, Turing
 
@@ -100,6 +112,9 @@ def initial_state(model, key, shape, capacity=None) -> State:
     if isinstance(model, Reinforcement):
         t, w = float(jnp.max(model.threshold)), float(jnp.max(model.width))
         return random_state(key, shape, (t - w, t + w), names=("c",), capacity=capacity)
+    if hasattr(model, "homogeneous_state"):  # the classic reactions: their steady state, a little noise
+        steady = [float(jnp.max(v)) for v in model.homogeneous_state()]
+        return random_state(key, shape, *(around(v) for v in steady), names=model.species, capacity=capacity)
     if isinstance(model, Composite):
         parts = [initial_state(p, jax.random.fold_in(key, i), shape, capacity) for i, p in enumerate(model.parts)]
         fields = jnp.concatenate([p.fields for p in parts])

@@ -149,7 +149,8 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str |
         domain: where the species diffuse (default `Lattice()`: nine-point stencil, wrap).
             Passing it together with `boundary` or `stencil` is an error.
         stencil: shorthand for `domain=Lattice(stencil=...)`: "nine-point" (the paper's
-            isotropic stencil, default) or "five-point".
+            isotropic stencil, default), "five-point" or "moore" (the thesis's sum over the
+            eight neighbours).
         bounds: "clip" (clamp to [lower, upper] after every step, the paper's method) or
             "barrier" / `Barrier(k)` (smooth rational terms, needs a ~20x smaller dt).
         growth: a `Growth` schedule (random matrix expansion); needs a state with capacity.

@@ -279,3 +279,14 @@ def test_preset_quick_form_makes_a_turing_pattern(name):
     assert 5.0 <= d.wavelength <= 12.0, d
     start = np.asarray(experiment.initial.build(jax.random.key(0)).arrays()[0])
     assert d.contrast > 10 * np.ptp(start)  # grown far beyond the start's noise
+
+
+def test_default_starts_of_the_classic_reactions_are_near_their_steady_state():
+    """`initial_state` (what `sweep(shape=...)` and the CLI use) starts each classic reaction
+    at its homogeneous state with 1% noise (absolute near 0)."""
+    for model in (mj.FitzHughNagumo(), mj.GiererMeinhardt(), mj.Schnakenberg(), mj.Brusselator()):
+        state = mj.initial_state(model, jax.random.key(0), (8, 8))
+        assert state.names == model.species
+        for values, steady in zip(state.arrays(), model.homogeneous_state()):
+            spread = 0.01 * max(abs(float(steady)), 1.0)
+            assert np.abs(values - float(steady)).max() <= spread * (1 + 1e-6) and values.std() > 0

@@ -14,6 +14,7 @@ stiffness at the spots' peaks.
 from __future__ import annotations
 
 from .._experiment import Experiment, Initial, Phase
+from .._initial import STEADY_NOISE, around
 from ..models import Brusselator, FitzHughNagumo, GiererMeinhardt, Schnakenberg
 from ._registry import ExperimentPreset, register
 
@@ -24,13 +25,7 @@ REACTIONS = {
     "schnakenberg": (Schnakenberg, 0.02, "Schnakenberg (paper 003 II.C.3): hexagonal spots"),
     "brusselator": (Brusselator, 0.02, "Brusselator (named in paper 003 II.C): hexagonal spots"),
 }
-NOISE = 0.01  # relative half-width of the uniform noise around the homogeneous state
 TIME, QUICK_TIME = 150.0, 60.0
-
-
-def _noisy(value):
-    spread = NOISE * max(abs(value), 1.0)
-    return (value - spread, value + spread)
 
 
 def _reaction(name, cls, dt, what):
@@ -40,10 +35,10 @@ def _reaction(name, cls, dt, what):
         steady = [float(v) for v in model.homogeneous_state()]
         return Experiment(
             name=name,
-            initial=Initial("uniform", shape, params=tuple(_noisy(v) for v in steady), names=model.species),
+            initial=Initial("uniform", shape, params=tuple(around(v) for v in steady), names=model.species),
             phases=(Phase(model, steps=int(round(T / dt)), dt=dt, frames=4, name="static"),),
             description=f"{what}; defaults of mj.{cls.__name__}, from ({steady[0]:g}, {steady[1]:g}) "
-                        f"with {NOISE:.0%} noise, T = {T:g}, dt = {dt:g}",
+                        f"with {STEADY_NOISE:.0%} noise, T = {T:g}, dt = {dt:g}",
             figure="paper 003 section II.C (equations only)", show="u",
         )
 
