@@ -33,6 +33,7 @@ from ._experiment import Experiment, Initial, Phase, Result, load_experiment, ru
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
 from ._animation import save_animation
+from ._explore import Explorer, explore
 from ._render_hex import hex_image, render_hex
 from .presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
@@ -84,9 +85,11 @@ __all__ = [
     "Descriptors",
     "DISTRIBUTIONS",
     "Experiment",
+    "explore",
+    "Explorer",
+    "experiment_picture",
     "FitzHughNagumo",
     "GiererMeinhardt",
-    "experiment_picture",
     "glider",
     "Gradient",
     "gray_scott_state",

@@ -161,3 +161,19 @@ def test_sweep_montage_agrees_with_its_table():
     assert near(shared) > 64 * 64 // 2  # the uniform tile at its level
     assert near(res.montage(scale=4, per_tile=True)) < 64 * 64 // 2  # stretched on its own
     assert (shared == 255).all(axis=-1).any()  # the white box of the "uniform" mark
+
+
+def test_explorer_builds_and_reruns_on_a_slider_move():
+    pytest.importorskip("ipywidgets")
+    state = mj.paper_state(jax.random.key(0), (16, 16))
+    ex = mj.explore(mj.Turing(8.0, 1.0), state, 200, 0.01, names=["ratio", "scale"])
+    assert set(ex.sliders) == {"ratio", "scale"} and ex.sliders["ratio"].min == 2.0 and ex.sliders["ratio"].max == 32.0
+    first = ex.image.value
+    assert first[:4] == b"\x89PNG"
+    ex.sliders["ratio"].value = 20.0  # what a user's drag does
+    assert ex.values["ratio"] == 20.0 and ex.image.value != first and "steps in" in ex.status.value
+    moved = ex.image.value
+    ex.sliders["scale"].value = 4.0  # 20 x 4 = 80: dt 0.01 is beyond the limit 0.0047
+    assert "largest stable dt is" in ex.status.value and ex.image.value == moved
+    with pytest.raises(ValueError, match="not finite scalar parameters"):
+        mj.explore(mj.Turing(), state, 10, 0.01, names=["colour"])
