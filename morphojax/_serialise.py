@@ -29,8 +29,9 @@ from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo
                      Reaction, Reinforcement, Schnakenberg, Turing)
 from ._state import State
 
+# the models a file can rebuild (a Reaction's file cannot: its function is code)
 MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement, FitzHughNagumo, GiererMeinhardt,
-                                            Schnakenberg, Brusselator, Reaction)}  # Reaction: refuses to load (its function is code)
+                                            Schnakenberg, Brusselator)}
 
 
 def to_jsonable(value):
@@ -73,6 +74,8 @@ def model_to_dict(model: AbstractModel) -> dict:
     if isinstance(model, Composite):
         return {"type": "Composite", "species": list(model.species), "parts": [model_to_dict(p) for p in model.parts]}
     params = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    if isinstance(model, Reaction):  # its function is code: a description stands in for it
+        params["fn"] = model.fn.describe()
     return {"type": type(model).__name__, "params": to_jsonable(params)}
 
 
@@ -80,6 +83,12 @@ def model_from_dict(data: dict) -> AbstractModel:
     kind = data.get("type")
     if kind == "Composite":
         return Composite([model_from_dict(p) for p in data["parts"]], species=data.get("species"))
+    if kind == "Reaction":
+        saved = data.get("params", {}).get("fn", {})
+        raise ValueError(
+            f"this model was saved from mj.Reaction with the function {saved.get('function')!r}; a function is "
+            "code, not data, so the file alone cannot rebuild it: build mj.Reaction(fn, params, diffusion, "
+            "species=...) with that function and apply the saved parameters with .replace(...)")
     if kind not in MODEL_TYPES:
         raise ValueError(f"unknown model type {kind!r} in saved data; allowed: {', '.join(MODEL_TYPES)}, Composite")
     params = from_jsonable(dict(data["params"]))

@@ -37,29 +37,27 @@ from ._base import LETTERS, AbstractModel, check_limits, species_stack
 _LIMIT_KINDS = ("diffusion", "lower", "upper")  # per-species parameters: diffusion_a, lower_b, ...
 
 
-class ReactionFunction(dict):
-    """A user's reaction function and the species it acts on: callable as `fn(x, params)`,
-    and written to files as the plain-data description {"function": "module.qualname",
-    "species": [...], "resumable": False, "why": ...} (the serialiser writes a dict's items;
-    a function has no plain-data form). Two are equal when they wrap the same function for
-    the same species, which is what a compiled run is cached by."""
+class ReactionFunction:
+    """A user's reaction function and the species it acts on, callable as `fn(x, params)`.
+    Two are equal when they wrap the same function for the same species, which is what a
+    compiled run is cached by. `describe()` is what files hold in its place."""
 
     def __init__(self, fn: Callable, species: tuple[str, ...]):
-        name = f"{getattr(fn, '__module__', None) or '?'}.{getattr(fn, '__qualname__', None) or repr(fn)}"
-        super().__init__(function=name, species=list(species), resumable=False,
-                         why="a user-written reaction function is code, not data: rebuild the model "
-                             "with mj.Reaction(fn, params, ...) to rerun or resume")
         self.fn = fn
         self.species = tuple(species)
+        self.name = f"{getattr(fn, '__module__', None) or '?'}.{getattr(fn, '__qualname__', None) or repr(fn)}"
+
+    def describe(self) -> dict:
+        """The plain-data stand-in for the function: it cannot be rebuilt from a file."""
+        return {"function": self.name, "species": list(self.species), "resumable": False,
+                "why": "a user-written reaction function is code, not data: rebuild the model "
+                       "with mj.Reaction(fn, params, ...) to rerun or resume"}
 
     def __call__(self, x, params):
         return self.fn(x, params)
 
     def __eq__(self, other):
         return isinstance(other, ReactionFunction) and other.fn == self.fn and other.species == self.species
-
-    def __ne__(self, other):
-        return not self == other
 
     def __hash__(self):
         return hash((self.fn, self.species))
@@ -93,13 +91,6 @@ class Reaction(AbstractModel):
 
     def __init__(self, fn, params=None, diffusion=None, species=None, lower=0.0, upper=math.inf, *, rates=None):
         # `rates` is the field's own name (what a saved model holds)
-        if isinstance(fn, Mapping) and not isinstance(fn, ReactionFunction) and fn.get("resumable") is False:
-            raise ValueError(
-                f"this model was saved from mj.Reaction with the function {fn.get('function')!r}; "
-                "a function is code, not data, so the file alone cannot rebuild it: build "
-                "mj.Reaction(fn, params, diffusion, species=...) with that function and apply the "
-                "saved parameters with .replace(...)"
-            )
         if not callable(fn):
             raise ValueError(f"Reaction.fn must be a function fn(x, params) -> dx/dt (got {fn!r})")
         diffusion = rates if rates is not None else diffusion
