@@ -286,10 +286,14 @@ def melanin(b, c) -> np.ndarray:
 
 def experiment_picture(state, experiment) -> tuple[np.ndarray, dict]:
     """What an experiment shows of a state: (2D array, keyword arguments of `to_image`):
-    its `show` species through its colour map, or the leopard's melanin texture (grey:
-    white fur = 0, black = 1) when show == "melanin"."""
+    its `show` species through its colour map, or, when show == "melanin", the leopard's
+    melanin texture (0 = no pigment, 1 = black) through the experiment's colour map (fur
+    tones with "leopard"), or in grey, white fur bright, under the default map."""
     if experiment.show == "melanin":
-        return 1.0 - melanin(state.array("b"), state.array("c")), {"cmap": "gray", "vmin": 0.0, "vmax": 1.0}
+        m = melanin(state.array("b"), state.array("c"))
+        if experiment.cmap == "inferno":
+            return 1.0 - m, {"cmap": "gray", "vmin": 0.0, "vmax": 1.0}
+        return m, {"cmap": experiment.cmap, "vmin": 0.0, "vmax": 1.0}
     return state.array(experiment.show), {"cmap": experiment.cmap}
 
 

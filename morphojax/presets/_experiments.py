@@ -264,7 +264,7 @@ def _leopard(quick):
                      "development: C = copy of B under reinforcement (t=5, w=5, Dc=1), growth 13.33/unit time "
                      "(middle rows divide half as often) to 370x370 in 12,000 steps; maintenance: B and C reinforced, "
                      "growth 1.33 to 390x390 in 10,000 steps; final melanin texture from B and C"),
-        figure="leopard paper Figs. 13-17", show="melanin",
+        figure="leopard paper Figs. 13-17", show="melanin", cmap="leopard",
     )
 
 
