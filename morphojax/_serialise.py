@@ -26,12 +26,12 @@ from ._checks import is_concrete
 from .domains import AbstractDomain, HexLattice, Lattice
 from ._growth import Growth, Source
 from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott,
-                     Reaction, Reinforcement, Schnakenberg, Turing)
+                     Reaction, Reinforcement, RuleReinforcement, Schnakenberg, ThesisReinforcement, Turing)
 from ._state import State
 
 # the models a file can rebuild (a Reaction's file cannot: its function is code)
 MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement, FitzHughNagumo, GiererMeinhardt,
-                                            Schnakenberg, Brusselator)}
+                                            Schnakenberg, Brusselator, ThesisReinforcement, RuleReinforcement)}
 
 
 def to_jsonable(value):

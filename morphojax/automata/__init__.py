@@ -12,7 +12,7 @@ Where each job lives (private modules, re-exported here and by `morphojax`):
   `_geometry`: its neighbourhoods; `_direct`, `_fft`, `_matmul`: the three counting
   methods; `_choice`: the plan and `auto`'s cost model; `_caches`: plans and kernel
   spectra of concrete models; `_soft`: the differentiable relaxation;
-- `_life`: life-like (B/S) rules;
+- `_life`: life-like (B/S) rules; `_wireworld`: Wireworld (thesis Fig. 7.2);
 - `_cells`: random lattices and the one-hot form; `_observables`: volume fractions,
   order parameter, convergence, weighted volume difference;
 - `_pictures`: images and slice montages; `_meshes`: marching-cubes meshes, PLY and OBJ.
@@ -33,6 +33,7 @@ from ._observables import (
 )
 from ._pictures import SPECIES_COLOURS, UNDIFFERENTIATED, cells_image, slice_montage, state_colours
 from ._young import METHODS, YoungCA
+from ._wireworld import WIREWORLD_COLOURS, Wireworld, wireworld_clock
 
 __all__ = [
     "AbstractAutomaton",
@@ -40,6 +41,7 @@ __all__ = [
     "cells_image",
     "changed_fraction",
     "glider",
+    "wireworld_clock",
     "hard_cells",
     "has_converged",
     "LifeLike",
@@ -58,6 +60,8 @@ __all__ = [
     "UNDIFFERENTIATED",
     "volume_fractions",
     "weighted_volume_difference",
+    "Wireworld",
+    "WIREWORLD_COLOURS",
     "write_obj",
     "write_ply",
     "write_species_meshes",

@@ -2,7 +2,8 @@
 
 `_base` holds `AbstractModel` / `AbstractReaction` and the per-species helpers; each family
 of reactions has its module (`_turing`: Bard, Turing; `_classic`: Gray-Scott and the other
-two-species systems of the literature; `_reinforcement`; `_custom`: a user's own reaction);
+two-species systems of the literature; `_reinforcement`; `_saturation`: the
+thesis's cubic and rule-based reinforcement; `_custom`: a user's own reaction);
 `_composite` runs several side by side; `_names` builds a model from its command-line name.
 """
 
@@ -12,6 +13,7 @@ from ._composite import Composite
 from ._custom import Reaction, ReactionFunction
 from ._names import MODELS, model_from_name
 from ._reinforcement import Reinforcement
+from ._saturation import RuleReinforcement, ThesisReinforcement
 from ._turing import Bard, Turing, bard_reaction
 
 __all__ = [
@@ -30,6 +32,8 @@ __all__ = [
     "Reaction",
     "ReactionFunction",
     "Reinforcement",
+    "RuleReinforcement",
     "Schnakenberg",
+    "ThesisReinforcement",
     "Turing",
 ]

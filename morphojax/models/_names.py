@@ -5,15 +5,17 @@ from __future__ import annotations
 from ._base import AbstractModel
 from ._classic import Brusselator, FitzHughNagumo, GiererMeinhardt, GrayScott, Schnakenberg
 from ._reinforcement import Reinforcement
+from ._saturation import RuleReinforcement, ThesisReinforcement
 from ._turing import Bard, Turing
 
 MODELS = {
     "turing": Turing, "bard": Bard, "gray-scott": GrayScott, "reinforcement": Reinforcement,
     "fitzhugh-nagumo": FitzHughNagumo, "gierer-meinhardt": GiererMeinhardt, "schnakenberg": Schnakenberg,
-    "brusselator": Brusselator,
+    "brusselator": Brusselator, "thesis-reinforcement": ThesisReinforcement, "rule-reinforcement": RuleReinforcement,
 }
 _SPELLINGS = {"grayscott": "gray-scott", "fitzhughnagumo": "fitzhugh-nagumo", "fhn": "fitzhugh-nagumo",
-              "gierermeinhardt": "gierer-meinhardt"}
+              "gierermeinhardt": "gierer-meinhardt", "thesisreinforcement": "thesis-reinforcement",
+              "rulereinforcement": "rule-reinforcement"}
 
 
 def model_from_name(name: str, **params) -> AbstractModel:

@@ -1,0 +1,159 @@
+"""Single-reagent saturation patterns of the thesis, chapter 7: its cubic reaction
+(eq. 7.1) and its rule-based reinforcement (sections 6.6 and 7.2).
+
+Both act on one reagent `r` and are meant to run with saturation limits (the thesis's
+`define chemical P limit L`: lower 0, upper L) on its own Moore stencil
+(`Lattice(stencil="moore")`, rates as printed) at dt = 1, where one step is one of the
+thesis's iterations: next r = clip(r + rule(r) + D sum_j (r_j - r), 0, L) (thesis section
+4.7, steps 2, 4 and 6: the rules and diffusion both read the current state).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import jax
+import jax.numpy as jnp
+from jax import Array
+
+from .._checks import as_float_array, check_finite, check_range
+from ._base import AbstractReaction, check_limits, species_stack
+
+
+class ThesisReinforcement(AbstractReaction):
+    """The thesis's single-reagent reaction, eq. 7.1, with its sign as printed:
+
+        dr/dt = s (r - a)(r - b)(r - c) + D lap(r)
+
+    For s > 0 and a < b < c the middle root b attracts (the cubic is negative just above
+    it and positive just below) and a, c repel: the thesis's text wants the opposite (r
+    pushed to 0 below 0.5 and to 1 above), which s < 0 gives; the limits then stop r at 0
+    and 1. Defaults: Fig. 7.9's s = 0.35, a = 0.3, b = 0.5, c = 0.7, with Fig. 7.4's
+    diffusion rate 0.01 and limits [0, 1]. Units: r a concentration, s per unit time per
+    concentration^2, D in cells^2 per unit time (or, on the Moore stencil, the thesis's
+    rate per neighbour per iteration).
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("r",)
+    ALIASES: ClassVar[dict[str, str]] = {"diffusion": "diffusion_rate"}  # `diffusion()` is the method
+    s: Array
+    a: Array
+    b: Array
+    c: Array
+    diffusion_rate: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, s=0.35, a=0.3, b=0.5, c=0.7, diffusion=0.01, lower=0.0, upper=1.0, *, diffusion_rate=None):
+        if diffusion_rate is not None:  # the field's own name, used by `replace`
+            diffusion = diffusion_rate
+        name = type(self).__name__
+        self.s = as_float_array(s, f"{name}.s")
+        self.a = as_float_array(a, f"{name}.a")
+        self.b = as_float_array(b, f"{name}.b")
+        self.c = as_float_array(c, f"{name}.c")
+        self.diffusion_rate = as_float_array(diffusion, f"{name}.diffusion")
+        self.lower = species_stack(lower, 1, f"{name}.lower")
+        self.upper = species_stack(upper, 1, f"{name}.upper")
+
+    def __check_init__(self):
+        name = type(self).__name__
+        for field in ("s", "a", "b", "c"):
+            check_finite(getattr(self, field), f"{name}.{field}")
+        check_finite(self.diffusion_rate, f"{name}.diffusion")
+        check_range(self.diffusion_rate, f"{name}.diffusion (a diffusion rate)", low=0.0)
+        check_limits(self)
+
+    def reaction(self, x):
+        r = x[0]
+        return (self.s * (r - self.a) * (r - self.b) * (r - self.c))[None]
+
+    def diffusion(self):
+        return species_stack(self.diffusion_rate, 1, f"{type(self).__name__} diffusion")
+
+
+def _window(r, above, below, width):
+    """1 where above < r < below, else 0; with width > 0 the product of two logistic
+    steps of that width (concentration units) instead. Infinite ends give exact 1s."""
+    hard = ((r > above) & (r < below)).astype(r.dtype)
+    w = jnp.where(width > 0, width, 1.0)  # a finite divisor on both branches keeps gradients finite
+    soft = jax.nn.sigmoid((r - above) / w) * jax.nn.sigmoid((below - r) / w)  # an infinite end gives 1
+    return jnp.where(width > 0, soft, hard)
+
+
+class RuleReinforcement(AbstractReaction):
+    """The thesis's rule-based reinforcement (sections 6.6 and 7.2; Figs. 6.10, 7.4-7.8):
+    add `gain` to r where it lies in the window (rise_above, rise_below), subtract `loss`
+    where it lies in (fall_above, fall_below), clamped to [lower, upper] by the step:
+
+        dr/dt = gain [rise_above < r < rise_below] - loss [fall_above < r < fall_below] + D lap(r)
+
+    At dt = 1 a rate is the thesis's per-iteration change: `rule if P conc > 0.7 change P
+    conc +0.01` is rise_above = 0.7 (rise_below = inf), gain = 0.01; `rule if R conc in 0.1
+    0.9 change R conc -0.0004` is fall_above = 0.1, fall_below = 0.9, loss = 0.0004. The
+    windows are open (a value exactly at a threshold gets no change; the thesis's `in`
+    intervals are closed, which differs only on a set of measure zero).
+
+    Differentiability: with `width = 0` (the default, the thesis's rule) the indicators
+    are step functions, so the gradient of a run with respect to r and to the four
+    thresholds is zero almost everywhere (only `gain`, `loss` and D get useful gradients).
+    `width > 0` replaces each edge by a logistic step of that width (concentration
+    units), a smooth rule whose gradients are nonzero near the thresholds; it tends to
+    the hard rule as width -> 0.
+
+    Defaults: thesis Fig. 7.4 (limit 1, D = 0.01: add 0.01 above 0.7, subtract 0.01 below
+    0.3). Units: r a concentration, gain and loss concentration per unit time, D in cells^2
+    per unit time (or the thesis's rate per neighbour per iteration on the Moore stencil).
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("r",)
+    ALIASES: ClassVar[dict[str, str]] = {"diffusion": "diffusion_rate"}  # `diffusion()` is the method
+    rise_above: Array
+    rise_below: Array
+    gain: Array
+    fall_above: Array
+    fall_below: Array
+    loss: Array
+    width: Array
+    diffusion_rate: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, rise_above=0.7, gain=0.01, fall_below=0.3, loss=0.01, diffusion=0.01, lower=0.0, upper=1.0, *,
+                 rise_below=math.inf, fall_above=-math.inf, width=0.0, diffusion_rate=None):
+        if diffusion_rate is not None:  # the field's own name, used by `replace`
+            diffusion = diffusion_rate
+        name = type(self).__name__
+        self.rise_above = as_float_array(rise_above, f"{name}.rise_above")
+        self.rise_below = as_float_array(rise_below, f"{name}.rise_below")
+        self.gain = as_float_array(gain, f"{name}.gain")
+        self.fall_above = as_float_array(fall_above, f"{name}.fall_above")
+        self.fall_below = as_float_array(fall_below, f"{name}.fall_below")
+        self.loss = as_float_array(loss, f"{name}.loss")
+        self.width = as_float_array(width, f"{name}.width")
+        self.diffusion_rate = as_float_array(diffusion, f"{name}.diffusion")
+        self.lower = species_stack(lower, 1, f"{name}.lower")
+        self.upper = species_stack(upper, 1, f"{name}.upper")
+
+    def __check_init__(self):
+        name = type(self).__name__
+        check_finite(self.rise_above, f"{name}.rise_above", allow_inf="-")
+        check_finite(self.rise_below, f"{name}.rise_below", allow_inf="+")
+        check_finite(self.fall_above, f"{name}.fall_above", allow_inf="-")
+        check_finite(self.fall_below, f"{name}.fall_below", allow_inf="+")
+        for field in ("gain", "loss", "width"):
+            check_finite(getattr(self, field), f"{name}.{field}")
+            check_range(getattr(self, field), f"{name}.{field}", low=0.0)
+        check_finite(self.diffusion_rate, f"{name}.diffusion")
+        check_range(self.diffusion_rate, f"{name}.diffusion (a diffusion rate)", low=0.0)
+        check_limits(self)
+
+    def reaction(self, x):
+        r = x[0]
+        up = _window(r, self.rise_above, self.rise_below, self.width)
+        down = _window(r, self.fall_above, self.fall_below, self.width)
+        return (self.gain * up - self.loss * down)[None]
+
+    def diffusion(self):
+        return species_stack(self.diffusion_rate, 1, f"{type(self).__name__} diffusion")
