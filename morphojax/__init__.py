@@ -8,6 +8,7 @@
 """
 
 from .domains import BOUNDARIES, STENCILS, AbstractDomain, HexLattice, Lattice, laplacian, max_stable_dt
+from .domains import Mesh
 from .models import (
     AbstractModel,
     Bard,
@@ -37,6 +38,7 @@ from ._render import Gradient, experiment_picture, map_image, montage, render, r
 from ._animation import save_animation
 from ._explore import Explorer, explore
 from ._render_hex import hex_image, render_hex
+from ._render_mesh import mesh_image, vertex_colours
 from .presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
 from ._sweep import sweep
@@ -115,6 +117,8 @@ __all__ = [
     "load_sweep",
     "map_image",
     "max_stable_dt",
+    "Mesh",
+    "mesh_image",
     "Member",
     "model_from_name",
     "model_from_dict",
@@ -162,6 +166,7 @@ __all__ = [
     "to_image",
     "to_jsonable",
     "Turing",
+    "vertex_colours",
     "volume_fractions",
     "weighted_volume_difference",
     "WholeCapacity",

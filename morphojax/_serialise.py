@@ -23,7 +23,7 @@ import numpy as np
 
 from ._bounds import Barrier
 from ._checks import is_concrete
-from .domains import AbstractDomain, HexLattice, Lattice
+from .domains import AbstractDomain, HexLattice, Lattice, Mesh
 from ._growth import Growth, Source
 from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott,
                      Reaction, Reinforcement, RuleReinforcement, Schnakenberg, ThesisReinforcement, Turing)
@@ -99,7 +99,7 @@ def model_from_dict(data: dict) -> AbstractModel:
     return MODEL_TYPES[kind](**params)
 
 
-DOMAIN_TYPES = {cls.__name__: cls for cls in (Lattice, HexLattice)}
+DOMAIN_TYPES = {cls.__name__: cls for cls in (Lattice, HexLattice, Mesh)}
 
 
 def domain_to_dict(domain: AbstractDomain) -> dict:

@@ -1,8 +1,10 @@
-"""Meshes of 3D cellular-automaton lattices.
+"""Meshes of 3D cellular-automaton lattices, and the PLY / OBJ writers of every mesh.
 
 Per species, a closed surface mesh from scikit-image's marching cubes (`species_mesh`),
 written as PLY (coloured like the pictures) or OBJ by the small writers here
 (`write_ply`, `write_obj`, `write_species_meshes`). Coordinates are in lattice cells.
+The writers also take one colour per vertex: reaction-diffusion on a `Mesh` writes its
+values through them (`mj.vertex_colours`).
 """
 
 from __future__ import annotations
@@ -33,22 +35,41 @@ def species_mesh(cells, j: int, *, step_size: int = 1) -> tuple[np.ndarray, np.n
     return (verts - 1.0).astype(np.float32), faces.astype(np.int32)
 
 
-def write_ply(path, vertices, faces, colour=None) -> Path:
-    """A binary little-endian PLY triangle mesh (optional uniform RGB vertex colour)."""
+def _vertex_colours(colour, n: int):
+    """None, or an (n, 3) uint8 array from one RGB triple or one triple per vertex."""
+    if colour is None:
+        return None
+    c = np.asarray(colour)
+    if c.shape == (3,):
+        c = np.broadcast_to(c, (n, 3))
+    if c.shape != (n, 3):
+        raise ValueError(f"colour must be one RGB triple or one per vertex, shape ({n}, 3) (got {c.shape})")
+    if np.issubdtype(c.dtype, np.floating) and c.size and c.max() <= 1.0:
+        c = np.round(c * 255.0)  # colours in [0, 1]
+    if c.size and (c.min() < 0 or c.max() > 255):
+        raise ValueError("colour values must lie in [0, 255] (or [0, 1] as floats)")
+    return c.astype(np.uint8)
+
+
+def write_ply(path, vertices, faces, colour=None, comment: str = "morphojax") -> Path:
+    """A binary little-endian PLY triangle mesh with optional vertex colours: `colour` is
+    one RGB triple for every vertex or an (V, 3) array, one per vertex (uint8, or floats
+    in [0, 1]; `mj.vertex_colours` maps values through a colour map)."""
     path = Path(path)
     vertices = np.asarray(vertices, np.float32).reshape(-1, 3)
     faces = np.asarray(faces, np.int32).reshape(-1, 3)
-    header = ["ply", "format binary_little_endian 1.0", "comment morphojax cellular automaton",
+    colours = _vertex_colours(colour, len(vertices))
+    header = ["ply", "format binary_little_endian 1.0", f"comment {comment}",
               f"element vertex {len(vertices)}", "property float x", "property float y", "property float z"]
     vdtype = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
-    if colour is not None:
+    if colours is not None:
         header += ["property uchar red", "property uchar green", "property uchar blue"]
         vdtype += [("r", "u1"), ("g", "u1"), ("b", "u1")]
     header += [f"element face {len(faces)}", "property list uchar int vertex_indices", "end_header"]
     vrec = np.zeros(len(vertices), dtype=vdtype)
     vrec["x"], vrec["y"], vrec["z"] = vertices.T
-    if colour is not None:
-        vrec["r"], vrec["g"], vrec["b"] = (int(c) for c in colour)
+    if colours is not None:
+        vrec["r"], vrec["g"], vrec["b"] = colours.T
     frec = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     frec["n"] = 3
     frec["i"] = faces
@@ -59,8 +80,9 @@ def write_ply(path, vertices, faces, colour=None) -> Path:
     return path
 
 
-def read_ply(path) -> tuple[np.ndarray, np.ndarray]:
-    """Read back a mesh written by `write_ply` (vertices, faces)."""
+def read_ply(path, colours: bool = False):
+    """Read back a mesh written by `write_ply`: (vertices, faces), and with `colours=True`
+    also the (V, 3) uint8 vertex colours (None when the file has none)."""
     data = Path(path).read_bytes()
     end = data.index(b"end_header\n") + len(b"end_header\n")
     header = data[:end].decode("ascii").splitlines()
@@ -70,17 +92,26 @@ def read_ply(path) -> tuple[np.ndarray, np.ndarray]:
     vdtype = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")] + ([("r", "u1"), ("g", "u1"), ("b", "u1")] if coloured else [])
     v = np.frombuffer(data, dtype=vdtype, count=n_v, offset=end)
     f = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", (3,))], count=n_f, offset=end + v.nbytes)
-    return np.stack([v["x"], v["y"], v["z"]], 1), f["i"].copy()
+    out = np.stack([v["x"], v["y"], v["z"]], 1), f["i"].copy()
+    if not colours:
+        return out
+    return out + ((np.stack([v["r"], v["g"], v["b"]], 1) if coloured else None),)
 
 
-def write_obj(path, vertices, faces) -> Path:
-    """A Wavefront OBJ triangle mesh (text; indices are 1-based)."""
+def write_obj(path, vertices, faces, colour=None, comment: str = "morphojax") -> Path:
+    """A Wavefront OBJ triangle mesh (text; indices are 1-based). With `colour` (as for
+    `write_ply`) each vertex line carries its colour as `v x y z r g b` with r, g, b in
+    [0, 1], the vertex-colour extension that MeshLab, Blender and trimesh read."""
     path = Path(path)
     vertices = np.asarray(vertices, np.float32).reshape(-1, 3)
     faces = np.asarray(faces, np.int64).reshape(-1, 3)
+    colours = _vertex_colours(colour, len(vertices))
     with open(path, "w") as fh:
-        fh.write("# morphojax cellular automaton\n")
-        np.savetxt(fh, vertices, fmt="v %.4f %.4f %.4f")
+        fh.write(f"# {comment}\n")
+        if colours is None:
+            np.savetxt(fh, vertices, fmt="v %.4f %.4f %.4f")
+        else:
+            np.savetxt(fh, np.hstack([vertices, colours / 255.0]), fmt="v %.4f %.4f %.4f %.4f %.4f %.4f")
         np.savetxt(fh, faces + 1, fmt="f %d %d %d")
     return path
 
@@ -99,8 +130,8 @@ def write_species_meshes(cells, k: int, stem, fmt: str = "ply") -> list[Path]:
             continue
         path = stem.parent / f"{stem.name}_species{j}.{fmt}"
         if fmt == "ply":
-            write_ply(path, verts, faces, colour=colours[j])
+            write_ply(path, verts, faces, colour=colours[j], comment="morphojax cellular automaton")
         else:
-            write_obj(path, verts, faces)
+            write_obj(path, verts, faces, comment="morphojax cellular automaton")
         paths.append(path)
     return paths

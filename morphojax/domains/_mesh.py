@@ -1,0 +1,417 @@
+"""A triangle mesh: the cotangent Laplace-Beltrami operator with a lumped mass matrix.
+
+Fields have shape (species, vertices): one value per vertex, in the mesh's vertex order
+(`State.from_arrays([u, v])` with 1D arrays). The operator is the standard linear-finite-
+element Laplace-Beltrami operator of a triangulated surface (Pinkall & Polthier 1993;
+Meyer, Desbrun, Schroeder & Barr 2003):
+
+    (L u)_i = (1 / M_i) sum_j w_ij (u_j - u_i),   w_ij = (cot alpha_ij + cot beta_ij) / 2,
+
+alpha_ij and beta_ij the angles opposite the edge (i, j) in its one or two triangles, and
+M_i the vertex's area: the mixed Voronoi area of Meyer et al. (default) or a third of the
+areas of its triangles ("barycentric"). Units: lengths in the mesh's own units, so L is in
+length^-2 and diffusion rates in length^2 per unit time. A boundary edge has one triangle,
+which makes the operator no-flux there; w is symmetric, so pure diffusion conserves the
+mass-weighted total sum_i M_i u_i.
+
+The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
+as a padded table (vertices, max degree) of indices with their weights (zero on padding)
+and the inverse masses. Applying it in JAX is then a gather and a row sum, no scatter:
+it fuses with the reaction into one loop on CPU. Stability: forward Euler on pure
+diffusion is stable while dt * D * rho <= 2, rho the largest eigenvalue of M^-1 W_L (the
+Laplacian is negative semi-definite for any mesh: it is the Dirichlet energy of the linear
+interpolant); rho is computed at construction by Lanczos iterations on the symmetric form
+M^-1/2 (D - W) M^-1/2, times 1.01 (the iterations approach it from below), and never above
+the Gershgorin bound max_i 2 sum_j |w_ij| / M_i, which holds for every matrix.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._checks import check_choice
+from ._base import AbstractDomain
+
+MASSES = ("voronoi", "barycentric")
+SAFETY = 1.01  # rho = SAFETY x the Lanczos estimate of the largest eigenvalue (from below)
+FORMATS = ("obj", "ply", "stl", "off")
+
+
+# ---- geometry in NumPy (built once) --------------------------------------------------------
+def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices float64 (V, 3), faces int64 (F, 3)) after checking a triangle mesh.
+
+    Raises a ValueError for: wrong shapes or non-finite coordinates; indices outside
+    [0, V); degenerate faces (a repeated vertex, or an area below 1e-12 x the squared mean
+    edge length); non-manifold edges (an edge shared by more than two faces, which also
+    catches duplicated faces); vertices that no face uses (they would have no area).
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3:
+        raise ValueError(f"Mesh.vertices must have shape (V, 3) with V >= 3 (got {v.shape})")
+    if not np.isfinite(v).all():
+        raise ValueError("Mesh.vertices contains NaN or infinite coordinates")
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) < 1:
+        raise ValueError(f"Mesh.faces must have shape (F, 3) with F >= 1: triangles only (got {f.shape})")
+    if not np.issubdtype(f.dtype, np.integer):
+        if not np.all(np.equal(np.mod(f, 1), 0)):
+            raise ValueError("Mesh.faces must hold integer vertex indices")
+    f = f.astype(np.int64)
+    if f.min() < 0 or f.max() >= len(v):
+        raise ValueError(f"Mesh.faces indices must lie in [0, {len(v) - 1}] (got {f.min()} to {f.max()})")
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    if repeated.any():
+        raise ValueError(f"Mesh.faces: {int(repeated.sum())} degenerate faces repeat a vertex (first: face "
+                         f"{int(np.argmax(repeated))})")
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    lengths2 = ((v[e[:, 0]] - v[e[:, 1]]) ** 2).sum(1)
+    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    tiny = area <= 1e-12 * lengths2.mean()
+    if tiny.any():
+        raise ValueError(f"Mesh.faces: {int(tiny.sum())} degenerate faces have (almost) zero area (first: face "
+                         f"{int(np.argmax(tiny))}); remove them (e.g. trimesh's process=True) first")
+    undirected = np.sort(e, axis=1)
+    _, counts = np.unique(undirected, axis=0, return_counts=True)
+    if (counts > 2).any():
+        raise ValueError(f"Mesh is not manifold: {int((counts > 2).sum())} edges are shared by more than two faces "
+                         "(or faces are duplicated); the Laplace-Beltrami operator needs a manifold surface")
+    used = np.zeros(len(v), bool)
+    used[f.ravel()] = True
+    if not used.all():
+        raise ValueError(f"Mesh has {int((~used).sum())} vertices that no face uses (first: {int(np.argmin(used))}); "
+                         "remove them, they would have no area")
+    return v, f
+
+
+def cotangent_operator(v: np.ndarray, f: np.ndarray, mass: str = "voronoi"):
+    """(rows, cols, weights, masses): the symmetric cotangent weights w_ij as COO triplets
+    (both directions, duplicates summed) and the lumped vertex areas M_i (see the module)."""
+    corners = [v[f[:, k]] for k in range(3)]
+    cots, sq = [], []
+    for k in range(3):  # the angle at corner k is opposite the edge (k + 1, k + 2)
+        a = corners[(k + 1) % 3] - corners[k]
+        b = corners[(k + 2) % 3] - corners[k]
+        cots.append((a * b).sum(1) / np.linalg.norm(np.cross(a, b), axis=1))
+        sq.append(((corners[(k + 1) % 3] - corners[(k + 2) % 3]) ** 2).sum(1))  # edge opposite k, squared
+    rows, cols, w = [], [], []
+    for k in range(3):
+        i, j = f[:, (k + 1) % 3], f[:, (k + 2) % 3]
+        rows += [i, j]
+        cols += [j, i]
+        w += [0.5 * cots[k], 0.5 * cots[k]]
+    rows, cols, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
+    area = 0.5 * np.linalg.norm(np.cross(corners[1] - corners[0], corners[2] - corners[0]), axis=1)
+    m = np.zeros(len(v))
+    if mass == "barycentric":
+        for k in range(3):
+            np.add.at(m, f[:, k], area / 3.0)
+        return rows, cols, w, m
+    # mixed Voronoi (Meyer et al. 2003, Fig. 4): the Voronoi region inside a non-obtuse
+    # triangle; half the area at an obtuse corner and a quarter at the other two
+    obtuse = np.stack([c < 0 for c in cots], 1)  # cot < 0: the angle is obtuse
+    any_obtuse = obtuse.any(1)
+    for k in range(3):
+        # Voronoi part at corner k: (|e_k,k+1|^2 cot(angle k+2) + |e_k,k+2|^2 cot(angle k+1)) / 8
+        voronoi = (sq[(k + 2) % 3] * cots[(k + 2) % 3] + sq[(k + 1) % 3] * cots[(k + 1) % 3]) / 8.0
+        part = np.where(any_obtuse, np.where(obtuse[:, k], area / 2.0, area / 4.0), voronoi)
+        np.add.at(m, f[:, k], part)
+    return rows, cols, w, m
+
+
+def _neighbour_table(n: int, rows, cols, w):
+    """Sum duplicate (i, j) weights and pack each vertex's neighbours into a padded table:
+    (neighbours (n, K) int32 padded with the vertex itself, weights (n, K) padded with 0)."""
+    key = rows * n + cols
+    uniq, inverse = np.unique(key, return_inverse=True)
+    summed = np.bincount(inverse, weights=w, minlength=len(uniq))
+    r, c = uniq // n, uniq % n  # sorted by row, then column
+    degree = np.bincount(r, minlength=n)
+    k = int(degree.max())
+    start = np.concatenate([[0], np.cumsum(degree)[:-1]])
+    slot = np.arange(len(r)) - start[r]
+    table = np.repeat(np.arange(n)[:, None], k, axis=1)
+    weights = np.zeros((n, k))
+    table[r, slot] = c
+    weights[r, slot] = summed
+    return table.astype(np.int32), weights
+
+
+def largest_eigenvalue(table, weights, inverse_mass) -> float:
+    """Largest eigenvalue of -L = M^-1 (D - W) (Lanczos on the symmetric form), in the
+    mesh's length^-2, times `SAFETY`, capped by the Gershgorin bound (see the module)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import eigsh
+
+    n = len(inverse_mass)
+    w = sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(n), table.shape[1]), table.ravel())), shape=(n, n))
+    d = np.asarray(w.sum(1)).ravel()
+    s = sp.diags(np.sqrt(inverse_mass))
+    sym = s @ (sp.diags(d) - w) @ s
+    gershgorin = float(np.max(inverse_mass * (np.abs(weights).sum(1) + np.abs(d))))
+    try:
+        lam = float(eigsh(sym, k=1, which="LA", tol=1e-6, maxiter=5000, return_eigenvectors=False)[0])
+    except Exception:  # no convergence: the bound that holds for every matrix
+        return gershgorin
+    return min(SAFETY * lam, gershgorin)
+
+
+# ---- the domain -------------------------------------------------------------------------------
+class Mesh(AbstractDomain):
+    """A triangle mesh: species live on its vertices and diffuse by the cotangent
+    Laplace-Beltrami operator with a lumped mass matrix (see the module docstring).
+
+    Args:
+        vertices: (V, 3) coordinates; lengths in the mesh's units (diffusion rates are then
+            length^2 per unit time).
+        faces: (F, 3) vertex indices of the triangles (a manifold surface, closed or with
+            boundary; a boundary is no-flux).
+        mass: "voronoi" (mixed Voronoi areas, Meyer et al. 2003; default) or "barycentric"
+            (a third of each incident triangle's area).
+
+    The remaining keyword arguments (`neighbours`, `weights`, `inverse_mass`, `rho`) are
+    the built operator, passed back by a saved file; leave them out to build it.
+
+    Growth is not supported on a mesh. `Mesh.from_file`, `Mesh.icosphere`, `Mesh.torus`
+    and `Mesh.capsule` make meshes; `mj.mesh_image` draws values on one.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    neighbours: jnp.ndarray  # (V, K) int32: each vertex's neighbours, padded with itself
+    weights: jnp.ndarray  # (V, K): cotangent weights w_ij, 0 on padding
+    inverse_mass: jnp.ndarray  # (V,): 1 / M_i, length^-2
+    mass: str = eqx.field(static=True)
+    rho: float = eqx.field(static=True)
+
+    def __init__(self, vertices, faces, mass: str = "voronoi", *, neighbours=None, weights=None, inverse_mass=None,
+                 rho=None):
+        check_choice(mass, "Mesh.mass", MASSES)
+        built = (neighbours, weights, inverse_mass, rho)
+        if all(x is not None for x in built):  # a saved operator: shapes checked, numbers as saved
+            v = np.asarray(vertices, np.float64)
+            f = np.asarray(faces, np.int64)
+            table, w, inv, rho = (np.asarray(neighbours, np.int32), np.asarray(weights), np.asarray(inverse_mass),
+                                  float(rho))
+            if table.shape != w.shape or table.shape[0] != len(v) or inv.shape != (len(v),):
+                raise ValueError("Mesh: the saved operator does not match the vertices")
+        else:
+            v, f = check_mesh(vertices, faces)
+            rows, cols, wc, m = cotangent_operator(v, f, mass)
+            if not (m > 0).all():
+                raise ValueError(f"Mesh: {int((m <= 0).sum())} vertices have no positive area")
+            table, w = _neighbour_table(len(v), rows, cols, wc)
+            inv = 1.0 / m
+            rho = largest_eigenvalue(table, w, inv)
+        self.vertices = v.astype(np.float32)
+        self.faces = f.astype(np.int32)
+        self.neighbours = jnp.asarray(table, jnp.int32)
+        self.weights = jnp.asarray(w)
+        self.inverse_mass = jnp.asarray(inv)
+        self.mass = mass
+        self.rho = float(rho)
+
+    # ---- the domain's interface ---------------------------------------------------------
+    @property
+    def spectral_radius(self) -> float:
+        return self.rho
+
+    @property
+    def ndim(self) -> int:
+        return 1
+
+    @property
+    def description(self) -> str:
+        return f"mesh Laplace-Beltrami operator ({self.n_vertices} vertices, spectral radius {self.rho:.4g})"
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    def _operator(self, x):
+        x = jnp.asarray(x)
+        w = self.weights.astype(x.dtype) if jnp.issubdtype(x.dtype, jnp.floating) else self.weights
+        # gather the neighbours and sum each row: (..., V, K) -> (..., V); padding has w = 0
+        return jnp.sum(w * (x[..., self.neighbours] - x[..., None]), axis=-1) * self.inverse_mass.astype(w.dtype)
+
+    def carry(self, fields, size, dynamic):
+        if dynamic:
+            raise ValueError("growth is not supported on a Mesh (its vertices are fixed)")
+        self._check_fields(fields)
+        return fields
+
+    def interior(self, carried):
+        return carried
+
+    def diffusion(self, carried, rates):
+        op = self._operator(carried)
+        return [_per_vertex(rates[i]) * op[i] for i in range(op.shape[0])]
+
+    def write(self, carried, new, size, dynamic):
+        # the step broadcasts per-species numbers as lattice (1, 1) arrays, which puts a
+        # unit axis in front of the vertices: the carried layout stays (species, vertices)
+        return jnp.reshape(new, carried.shape)
+
+    def active_mask(self, shape, size):
+        return jnp.ones(tuple(shape), bool)
+
+    def apply(self, fields):
+        """The Laplace-Beltrami operator on per-vertex values (..., V), in length^-2."""
+        self._check_fields(fields)
+        return self._operator(fields)
+
+    def _check_fields(self, fields):
+        if fields.shape[-1] != self.n_vertices:
+            raise ValueError(f"fields on this Mesh need one value per vertex: last axis {self.n_vertices} "
+                             f"(got shape {tuple(fields.shape)})")
+
+    # ---- geometry ---------------------------------------------------------------------------
+    def masses(self) -> np.ndarray:
+        """The lumped vertex areas M_i (length^2) as NumPy."""
+        return 1.0 / np.asarray(self.inverse_mass, np.float64)
+
+    def total(self, values) -> np.ndarray:
+        """The mass-weighted total sum_i M_i u_i over the last axis (conserved by pure diffusion)."""
+        return np.asarray(values, np.float64) @ self.masses()
+
+    # ---- construction --------------------------------------------------------------------
+    @classmethod
+    def from_file(cls, path, mass: str = "voronoi") -> "Mesh":
+        """Read an OBJ, PLY, STL or OFF triangle mesh with trimesh (quads are split;
+        duplicate vertices merged, as STL needs; unused vertices and degenerate faces are
+        then refused by the checks of `Mesh`)."""
+        path = Path(path)
+        ext = path.suffix.lower().lstrip(".")
+        if ext not in FORMATS:
+            raise ValueError(f"Mesh.from_file: unknown format {path.suffix!r}; allowed: {', '.join(FORMATS)}")
+        if not path.exists():
+            raise ValueError(f"Mesh.from_file: no such file {str(path)!r}")
+        try:
+            import trimesh
+        except ImportError as err:  # pragma: no cover
+            raise ImportError("Mesh.from_file needs trimesh: pip install trimesh") from err
+        loaded = trimesh.load(str(path), file_type=ext, force="mesh", process=True)
+        if len(getattr(loaded, "faces", ())) == 0:
+            raise ValueError(f"Mesh.from_file: {str(path)!r} holds no triangles")
+        return cls(np.asarray(loaded.vertices), np.asarray(loaded.faces), mass)
+
+    @classmethod
+    def icosphere(cls, subdivisions: int = 3, radius: float = 1.0, mass: str = "voronoi") -> "Mesh":
+        """A geodesic sphere: the icosahedron with each triangle split in four `subdivisions`
+        times, projected to the sphere (10 4^n + 2 vertices: 642 for n = 3, 2562 for 4)."""
+        return cls(*icosphere_arrays(subdivisions, radius), mass)
+
+    @classmethod
+    def torus(cls, major: float = 2.0, minor: float = 0.75, spacing: float = 0.1, mass: str = "voronoi") -> "Mesh":
+        """A torus around z with radii `major` > `minor`, triangles about `spacing` wide."""
+        if not (major > minor > 0):
+            raise ValueError(f"Mesh.torus needs major > minor > 0 (got {major}, {minor})")
+        phi = np.linspace(0.0, 2 * np.pi, _count(2 * np.pi * minor, spacing, 6), endpoint=False)
+        return cls(*revolve(major + minor * np.cos(phi), minor * np.sin(phi), spacing, closed=True), mass)
+
+    @classmethod
+    def capsule(cls, radius: float = 1.0, length: float = 3.0, spacing: float = 0.1,
+                mass: str = "voronoi") -> "Mesh":
+        """A capsule along z (a body-like shape): a cylinder of `radius` and `length` with
+        hemispherical ends, triangles about `spacing` wide."""
+        if not (radius > 0 and length >= 0 and spacing > 0):
+            raise ValueError(f"Mesh.capsule needs radius > 0, length >= 0, spacing > 0 (got {radius}, {length}, "
+                             f"{spacing})")
+        arc = np.pi * radius / 2  # profile: cap (a quarter circle), side, cap, by arc length
+        total = 2 * arc + length
+        s = np.linspace(0.0, total, _count(total, spacing, 4) + 1)
+        r = np.where(s < arc, radius * np.sin(s / radius),
+                     np.where(s > arc + length, radius * np.sin((total - s) / radius), radius))
+        z = np.where(s < arc, -length / 2 - radius * np.cos(s / radius),
+                     np.where(s > arc + length, length / 2 + radius * np.cos((total - s) / radius),
+                              s - arc - length / 2))
+        r[0] = r[-1] = 0.0
+        return cls(*revolve(r, z, spacing, closed=False), mass)
+
+
+def _per_vertex(rate):
+    """A species' rate as a scalar or a (vertices,) array: per-species numbers reach the
+    domain shaped (1, 1) for a lattice; on a mesh only the last axis counts."""
+    rate = jnp.asarray(rate)
+    return rate.reshape(rate.shape[-1:]) if rate.ndim >= 2 else rate
+
+
+def _count(length, spacing, least):
+    if not spacing > 0:
+        raise ValueError(f"spacing must be > 0 (got {spacing})")
+    return max(least, int(round(length / spacing)))
+
+
+def icosphere_arrays(subdivisions: int, radius: float = 1.0):
+    """(vertices, faces) of a geodesic sphere (see `Mesh.icosphere`), outward winding."""
+    if not isinstance(subdivisions, (int, np.integer)) or not 0 <= subdivisions <= 7:
+        raise ValueError(f"icosphere subdivisions must be an integer in [0, 7] (got {subdivisions!r})")
+    if not radius > 0:
+        raise ValueError(f"icosphere radius must be > 0 (got {radius})")
+    t = (1 + math.sqrt(5)) / 2
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
+                  [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
+                  [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
+                  [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    for _ in range(int(subdivisions)):
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        uniq, inverse = np.unique(edges, axis=0, return_inverse=True)
+        mid = v[uniq].mean(1)
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        m = len(v) + inverse.reshape(3, -1).T  # midpoints of edges (0,1), (1,2), (2,0)
+        a, b, c = f.T
+        ab, bc, ca = m.T
+        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([b, bc, ab], 1), np.stack([c, ca, bc], 1),
+                            np.stack([ab, bc, ca], 1)])
+        v = np.concatenate([v, mid])
+    return v * radius, f
+
+
+def revolve(r, z, spacing, closed: bool):
+    """(vertices, faces) of the surface of revolution of the profile (r(s), z(s)) about z.
+
+    Each profile point becomes a ring of about 2 pi r / spacing vertices (one vertex where
+    r = 0: a pole), and neighbouring rings are stitched by walking both rings in angle and
+    always advancing the one whose next vertex comes first, so triangles stay near
+    equilateral from the poles to the widest ring. `closed`: the profile is a loop (a torus).
+    """
+    r, z = np.asarray(r, float), np.asarray(z, float)
+    counts = [1 if ri <= 1e-12 else max(3, int(round(2 * np.pi * ri / spacing))) for ri in r]
+    verts, starts = [], []
+    for k, (ri, zi, n) in enumerate(zip(r, z, counts)):
+        theta = (np.arange(n) + 0.5 * (k % 2)) * 2 * np.pi / n  # odd rings rotated half a step
+        starts.append(sum(len(x) for x in verts))
+        verts.append(np.stack([ri * np.cos(theta), ri * np.sin(theta), np.full(n, zi)], 1))
+    faces = []
+    pairs = [(k, k + 1) for k in range(len(r) - 1)] + ([(len(r) - 1, 0)] if closed else [])
+    for a, b in pairs:
+        faces += _stitch(starts[a], counts[a], (a % 2) * 0.5, starts[b], counts[b], (b % 2) * 0.5)
+    return np.concatenate(verts), np.asarray(faces, np.int64)
+
+
+def _stitch(sa, na, oa, sb, nb, ob):
+    """Triangles between ring a (na vertices from index sa, angle offset oa steps) and ring b."""
+    if na == 1 or nb == 1:  # a fan around a pole
+        pole, s, n = (sa, sb, nb) if na == 1 else (sb, sa, na)
+        tri = [(pole, s + i, s + (i + 1) % n) for i in range(n)]
+        return [(t[0], t[2], t[1]) for t in tri] if na == 1 else tri  # outward winding
+    ang_a = (np.arange(na + 1) + oa) / na
+    ang_b = (np.arange(nb + 1) + ob) / nb
+    # start both rings at the vertex of smallest angle; walk one full turn on each
+    i = j = 0
+    tri = []
+    while i < na or j < nb:
+        if j >= nb or (i < na and ang_a[i + 1] <= ang_b[j + 1]):
+            tri.append((sa + i % na, sa + (i + 1) % na, sb + j % nb))
+            i += 1
+        else:
+            tri.append((sa + i % na, sb + (j + 1) % nb, sb + j % nb))
+            j += 1
+    return tri

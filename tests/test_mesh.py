@@ -1,0 +1,235 @@
+"""Reaction-diffusion on triangle meshes (`mj.Mesh`), against the NumPy/SciPy oracle in
+tests/mesh_oracle.py, the sphere's spectrum, the square lattice, and exact invariants."""
+
+import json
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.sparse.linalg import eigsh
+
+import morphojax as mj
+from morphojax import _serialise
+from mesh_oracle import gray_scott_run, grid_mesh, laplacian
+from morphojax.automata import read_ply
+
+GS = dict(feed=0.0367, kill=0.0649, du=0.2097, dv=0.105)
+
+
+def matrices_of(mesh):
+    """(K, M) rebuilt from the domain's own arrays: what the JAX operator applies."""
+    n = mesh.n_vertices
+    table, w = np.asarray(mesh.neighbours), np.asarray(mesh.weights, float)
+    wm = sp.csr_matrix((w.ravel(), (np.repeat(np.arange(n), table.shape[1]), table.ravel())), shape=(n, n))
+    k = sp.diags(np.asarray(wm.sum(1)).ravel()) - wm
+    return k, sp.diags(mesh.masses())
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return mj.Mesh.icosphere(4)  # 2562 vertices, unit radius
+
+
+@pytest.fixture(scope="module")
+def small():
+    return mj.Mesh.capsule(radius=1.0, length=1.5, spacing=0.35)
+
+
+def test_operator_matches_oracle(small):
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(2, small.n_vertices))
+    for mass in ("voronoi", "barycentric"):
+        mesh = small if mass == "voronoi" else mj.Mesh(small.vertices, small.faces, mass="barycentric")
+        ref = np.stack([laplacian(mesh.vertices, mesh.faces, mass) @ xi for xi in x])
+        with jax.enable_x64(True):
+            got = np.asarray(mesh.apply(jnp.asarray(x)))
+        np.testing.assert_allclose(got, ref, rtol=2e-5, atol=2e-5 * np.abs(ref).max())
+
+
+def test_sphere_spectrum(sphere):
+    # the unit sphere's Laplace-Beltrami eigenvalues l (l + 1): 0, 2 (x3), 6 (x5)
+    k, m = matrices_of(sphere)
+    vals = np.sort(eigsh(k, k=9, M=m, sigma=-0.1, which="LM", return_eigenvectors=False))
+    assert abs(vals[0]) < 1e-6
+    np.testing.assert_allclose(vals[1:4], 2.0, rtol=0.02)
+    np.testing.assert_allclose(vals[4:9], 6.0, rtol=0.02)
+    # the stored spectral radius is the largest eigenvalue (Lanczos, x 1.01), from above
+    top = eigsh(k, k=1, M=m, which="LA", return_eigenvectors=False)[0]
+    assert top <= sphere.spectral_radius <= 1.011 * top
+
+
+def test_pure_diffusion_conserves_mass_and_constants(small):
+    model = mj.GrayScott(feed=0.0, kill=0.0, du=0.3, dv=0.1, lower=-math.inf)  # v = 0: pure diffusion of u
+    rng = np.random.default_rng(1)
+    u = rng.uniform(0.5, 1.5, small.n_vertices)
+    dt = 0.5 * small.max_stable_dt(0.3)
+    with jax.enable_x64(True):
+        out = mj.simulate(model, mj.State.from_arrays([u, np.zeros_like(u)]), 400, dt, domain=small)
+        after = out.arrays()[0]
+        assert small.total(after) == pytest.approx(small.total(u), rel=1e-12)
+        assert after.std() < 0.2 * u.std()  # and it did diffuse
+        const = mj.simulate(model, mj.State.from_arrays([np.full_like(u, 0.7), np.zeros_like(u)]), 50, dt,
+                            domain=small)
+        np.testing.assert_array_equal(const.arrays()[0], 0.7)
+    np.testing.assert_array_equal(np.asarray(small.apply(jnp.full((small.n_vertices,), 3.0))), 0.0)
+
+
+def test_flat_square_is_the_five_point_lattice():
+    n = 24
+    mesh = mj.Mesh(*grid_mesh(n))
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(n, n))
+    lat = np.asarray(mj.laplacian(jnp.asarray(x), boundary="no-flux", stencil="five-point"))
+    got = np.asarray(mesh.apply(jnp.asarray(x.ravel()))).reshape(n, n)
+    np.testing.assert_allclose(got[1:-1, 1:-1], lat[1:-1, 1:-1], rtol=1e-5, atol=1e-5)
+    # a Gray-Scott run from a central square: the same pattern as on the lattice, up to the
+    # boundary's discretisation (vertex-centred half cells on the mesh, cell-centred ghost
+    # cells on the lattice) once the pattern reaches the edges
+    state = mj.gray_scott_state(jax.random.key(0), (n, n), square=0.3, noise=0.0)
+    a, b = state.arrays()
+    model = mj.GrayScott(**GS)
+    on_lattice = mj.simulate(model, state, 300, 1.0, domain=mj.Lattice("five-point", "no-flux")).arrays()[1]
+    on_mesh = mj.simulate(model, mj.State.from_arrays([a.ravel(), b.ravel()]), 300, 1.0, domain=mesh).arrays()[1]
+    assert np.abs(on_mesh.reshape(n, n) - on_lattice).max() < 0.01 * on_lattice.max()
+    assert on_lattice.max() > 0.1  # the pattern is alive
+
+
+def test_gray_scott_run_matches_oracle(small):
+    rng = np.random.default_rng(3)
+    u, v = 1.0 - rng.uniform(0, 0.5, small.n_vertices), rng.uniform(0, 0.3, small.n_vertices)
+    dt = 0.5 * small.max_stable_dt(GS["du"])
+    ref = gray_scott_run(laplacian(small.vertices, small.faces), u, v, dt=dt, steps=100, **GS)
+    with jax.enable_x64(True):
+        got = mj.simulate(mj.GrayScott(**GS), mj.State.from_arrays([u, v]), 100, dt, domain=small).arrays()
+    np.testing.assert_allclose(got[0], ref[0], atol=1e-5)
+    np.testing.assert_allclose(got[1], ref[1], atol=1e-5)
+
+
+def test_dt_check_refuses_unstable_step_and_limit_is_tight(small):
+    model = mj.GrayScott(feed=0.0, kill=0.0, du=1.0, dv=0.1, lower=-math.inf)
+    limit = small.max_stable_dt(1.0)
+    rng = np.random.default_rng(4)
+    state = mj.State.from_arrays([rng.normal(size=small.n_vertices), np.zeros(small.n_vertices)])
+    with pytest.raises(ValueError, match="largest stable dt is"):
+        mj.simulate(model, state, 10, 1.05 * limit, domain=small)
+    with jax.enable_x64(True):
+        x0 = np.asarray(state.fields, float)
+        s64 = mj.State.from_arrays(list(x0), dtype=jnp.float64)
+        stable = mj.simulate(model, s64, 400, 0.99 * limit, domain=small).arrays()[0]
+        unstable = mj.run_status(model, s64, 400, 1.05 * limit, domain=small, check_dt=False).state.arrays()[0]
+    assert np.abs(stable).max() <= np.abs(x0[0]).max()
+    assert not np.isfinite(unstable).all() or np.abs(unstable).max() > 1e3 * np.abs(x0[0]).max()
+
+
+def test_vmap_and_grad(small):
+    rng = np.random.default_rng(5)
+    u, v = 1.0 - rng.uniform(0, 0.5, small.n_vertices), rng.uniform(0, 0.3, small.n_vertices)
+    dt = 0.5 * small.max_stable_dt(GS["du"])
+    with jax.enable_x64(True):
+        state = mj.State.from_arrays([u, v])
+
+        def loss(feed):
+            out = mj.simulate(mj.GrayScott(feed=feed, kill=0.0649, du=0.2097, dv=0.105), state, 30, dt, domain=small)
+            return jnp.sum(out.fields[1] ** 2 / small.inverse_mass)  # the mass-weighted total of v^2
+
+        feeds = jnp.asarray([0.03, 0.04, 0.05])
+        batched = jax.vmap(loss)(feeds)
+        for f, b in zip(feeds, batched):
+            assert float(b) == pytest.approx(float(loss(f)), rel=1e-10)
+        g = float(jax.grad(loss)(0.04))
+        h = 1e-6
+        fd = (float(loss(0.04 + h)) - float(loss(0.04 - h))) / (2 * h)
+        assert g == pytest.approx(fd, rel=1e-5)
+        assert g != 0.0
+
+
+def test_state_round_trip_in_vertex_order(small):
+    rng = np.random.default_rng(6)
+    u, v = rng.normal(size=small.n_vertices), rng.normal(size=small.n_vertices)
+    state = mj.State.from_arrays([u, v], dtype=jnp.float32)
+    assert state.ndim == 1 and state.shape == (small.n_vertices,)
+    a, b = state.arrays()
+    np.testing.assert_array_equal(a, u.astype(np.float32))
+    np.testing.assert_array_equal(b, v.astype(np.float32))
+
+
+def test_domain_serialises_exactly(small):
+    data = json.loads(json.dumps(_serialise.domain_to_dict(small)))
+    back = _serialise.domain_from_dict(data)
+    assert isinstance(back, mj.Mesh) and back.rho == small.rho and back.mass == small.mass
+    for name in ("vertices", "faces", "neighbours", "weights", "inverse_mass"):
+        np.testing.assert_array_equal(np.asarray(getattr(back, name)), np.asarray(getattr(small, name)))
+
+
+def test_phase_with_mesh_serialises_and_resumes(tmp_path):
+    exp = mj.preset("mesh-gray-scott-spots-sphere", quick=True)
+    assert isinstance(exp.phases[-1].domain, mj.Mesh)
+    loaded = mj.Experiment.from_dict(json.loads(json.dumps(exp.to_dict())))
+    np.testing.assert_array_equal(np.asarray(loaded.phases[0].domain.weights), np.asarray(exp.phases[0].domain.weights))
+    total = exp.total_steps
+    whole = mj.run_experiment(exp, seed=3)
+    ckpt = tmp_path / "half.npz"
+    mj.run_experiment(exp, seed=3, checkpoint_path=ckpt, checkpoint_every=total // 2, stop_after=total // 2)
+    resumed = mj.run_experiment(exp, seed=3, resume=ckpt)
+    np.testing.assert_array_equal(np.asarray(resumed.state.fields), np.asarray(whole.state.fields))
+    assert resumed.state.ndim == 1
+
+
+@pytest.mark.parametrize("bad, match", [
+    ((np.eye(3), [[0, 1, 1]]), "repeat a vertex"),
+    ((np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]]), [[0, 1, 2]]), "zero area"),
+    ((np.eye(3), [[0, 1, 3]]), r"indices must lie in \[0, 2\]"),
+    ((np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.0]]), [[0, 1, 2], [0, 1, 3], [0, 1, 4]]),
+     "not manifold"),
+    ((np.eye(4)[:, :3], [[0, 1, 2]]), "no face uses"),
+    ((np.eye(3)[:, :2], [[0, 1, 2]]), r"shape \(V, 3\)"),
+])
+def test_bad_meshes_are_refused(bad, match):
+    with pytest.raises(ValueError, match=match):
+        mj.Mesh(*bad)
+
+
+@pytest.mark.parametrize("fmt", ["obj", "ply", "stl", "off"])
+def test_from_file(tmp_path, fmt):
+    trimesh = pytest.importorskip("trimesh")
+    mesh = mj.Mesh.icosphere(1)
+    path = tmp_path / f"ball.{fmt}"
+    trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(str(path))
+    back = mj.Mesh.from_file(path)
+    assert back.n_vertices == mesh.n_vertices and len(back.faces) == len(mesh.faces)
+    assert back.spectral_radius == pytest.approx(mesh.spectral_radius, rel=1e-4)
+    with pytest.raises(ValueError, match="unknown format"):
+        mj.Mesh.from_file(tmp_path / "ball.xyz")
+
+
+def test_primitives_are_closed_and_outward():
+    for mesh, area in ((mj.Mesh.icosphere(3), 4 * np.pi), (mj.Mesh.torus(2.0, 0.75, 0.2), 4 * np.pi ** 2 * 1.5),
+                       (mj.Mesh.capsule(1.0, 3.0, 0.2), 4 * np.pi + 6 * np.pi)):
+        v, f = mesh.vertices.astype(float), mesh.faces
+        volume = np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() / 6
+        assert volume > 0  # outward winding
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all()  # closed
+        assert mesh.masses().sum() == pytest.approx(area, rel=0.02)
+
+
+def test_vertex_colours_in_ply_and_obj(tmp_path, small):
+    values = np.asarray(small.vertices[:, 2])
+    colours = mj.vertex_colours(values, cmap="viridis")
+    assert colours.shape == (small.n_vertices, 3) and colours.dtype == np.uint8
+    path = mj.write_ply(tmp_path / "c.ply", small.vertices, small.faces, colour=colours)
+    v, f, c = read_ply(path, colours=True)
+    np.testing.assert_array_equal(c, colours)
+    np.testing.assert_array_equal(f, small.faces)
+    lines = mj.write_obj(tmp_path / "c.obj", small.vertices, small.faces, colour=colours).read_text().splitlines()
+    first = next(line for line in lines if line.startswith("v "))
+    assert len(first.split()) == 7  # v x y z r g b
+
+
+def test_mesh_image(small):
+    img = mj.mesh_image(small, np.asarray(small.vertices[:, 2]), size=120)
+    arr = np.asarray(img)
+    assert img.size == (120, 120) and arr.std() > 10  # a drawn, shaded surface on the background
