@@ -89,13 +89,16 @@ def test_reinforcement(rng):
 
 
 def test_parameter_maps(start):
-    """Ratio varying along x and the upper limit of A along y, as in Ready's parameter maps."""
+    """Ratio varying along x and the upper limit of A along y, as in Ready's parameter maps;
+    the oracle's D(x) lap(u) is the pointwise form of a diffusion map (the default is the
+    flux form, checked against its own oracle in test_anisotropy.py)."""
     a, b = start
     rows, cols = SHAPE
     ratio = np.broadcast_to(np.linspace(4.0, 12.0, cols)[None, :], SHAPE)
     ua = np.broadcast_to(np.linspace(5.0, 8.0, rows)[:, None], SHAPE)
     model = mj.Turing(ratio=ratio, scale=3.0, upper=(ua, np.inf))
-    got = mj.simulate(model, mj.State.from_arrays([a, b]), steps=100, dt=0.008).arrays()
+    got = mj.simulate(model, mj.State.from_arrays([a, b]), steps=100, dt=0.008,
+                      domain=mj.Lattice(maps="pointwise")).arrays()
     ref = oracle.euler(lambda a, b: oracle.turing_rates(a, b, ratio, 3.0), [a, b], 0.008, (0.0, 0.0), (ua, np.inf), 100)
     for g, e in zip(got, ref):
         assert np.abs(g - e).max() < 1e-3

@@ -1,13 +1,16 @@
-"""The square lattice: a 3x3 stencil (a Laplacian, or the thesis's neighbour sum) with ghost-cell boundaries."""
+"""The square lattice: a 3x3 stencil (a Laplacian, or the thesis's neighbour sum) with ghost-cell
+boundaries; per-cell diffusion rates in flux form and anisotropic diffusion on its links (`_links`)."""
 
 from __future__ import annotations
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax import Array
 
-from .._checks import check_range
-from . import _stencils
+from .._checks import check_choice, check_range, default_float, is_concrete
+from . import _links, _stencils
 from ._base import AbstractDomain
 
 
@@ -25,17 +28,53 @@ class Lattice(AbstractDomain):
             8). The thesis's diffusion rates are used with "moore" as printed.
         boundary: "wrap" (toroidal) or "no-flux" (ghost cell = edge cell, as scipy's
             mode="reflect": pure diffusion conserves mass).
+        maps: how a diffusion map (a model whose rates are (rows, cols) arrays) diffuses:
+            "flux" (default), the conservative div(D grad u): each link of the stencil
+            carries w_ij D_ij (u_j - u_i) with D_ij the harmonic mean of the two cells'
+            rates (thesis eq. 4.7; 0 when either is 0), so mass is conserved and a cell of
+            rate 0 is impermeable; or "pointwise", D(x) lap(u) (not conservative; the
+            behaviour before the flux form). Scalar rates are unaffected by this choice.
+        anisotropic: the species whose diffusion follows the polarity (thesis eq. 4.8), by
+            position: an index (0 = first species) or a letter ("a" = first, "b" = second,
+            as in `lower_a`/`upper_b`; letters are positions, not the model's own names).
+            Each cell's rate toward neighbour j is scaled by |d_j . p| / |d_j| (d_j the
+            direction to the neighbour, p the cell's unit polarity; 1 for an unpolarised
+            cell) and the two scaled rates meet on the link by the harmonic mean (eq. 4.7):
+            the exchange is symmetric and mass is conserved where polarity varies.
+        polarity: None (no cell polarised: anisotropic species diffuse isotropically), an
+            angle in radians from the +x axis (0 = along a row toward increasing column,
+            pi/2 = along a column toward increasing row), or a (rows, cols) array of angles,
+            NaN = unpolarised (turned into the `polarised` mask here, so gradients stay
+            finite). An array leaf: differentiable and vmappable.
+        polarised: 1 where a cell is polarised, 0 where not (default: where `polarity` is
+            not NaN); what a saved domain holds beside its NaN-free angles.
+
+    Stability: every link rate is at most D_max times the stencil's weight (a harmonic mean
+    lies between its two rates, and |d . p| / |d| <= 1), so the operator is bounded by
+    D_max times the stencil's in the order of symmetric matrices and the stencil's spectral
+    radius bounds every map and polarity: dt * D_max * rho <= 2 stays the limit.
 
     Fields have shape (species, rows, cols); a growing lattice keeps its active region in
-    the top-left corner of a fixed-capacity array, its ghost cells right after it.
+    the top-left corner of a fixed-capacity array, its ghost cells right after it (growth
+    is refused with a polarity; on a growing lattice a rate map's links across the active
+    region's edge use the rates as laid out in the capacity array).
     """
 
     stencil: str = eqx.field(static=True)
     boundary: str = eqx.field(static=True)
+    maps: str = eqx.field(static=True)
+    anisotropic: tuple = eqx.field(static=True)
+    polarity: Array | None
+    polarised: Array | None
 
-    def __init__(self, stencil: str = "nine-point", boundary: str = "wrap"):
+    def __init__(self, stencil: str = "nine-point", boundary: str = "wrap", *, maps: str = "flux",
+                 anisotropic=(), polarity=None, polarised=None):
         self.stencil = _stencils.normalise_stencil(stencil)
         self.boundary = _stencils.normalise_boundary(boundary)
+        check_choice(str(maps), "maps", MAPS)
+        self.maps = str(maps)
+        self.anisotropic = _species_indices(anisotropic)
+        self.polarity, self.polarised = _polarity_leaves(polarity, polarised)
 
     @property
     def spectral_radius(self) -> float:
@@ -47,10 +86,12 @@ class Lattice(AbstractDomain):
 
     @property
     def supports_growth(self) -> bool:
-        return True
+        return self.polarity is None
 
     @property
     def description(self) -> str:
+        if self.anisotropic and self.polarity is not None:
+            return f"{self.stencil} stencil (anisotropic)"
         return f"{self.stencil} stencil"
 
     def carry(self, fields, size, dynamic):
@@ -63,8 +104,38 @@ class Lattice(AbstractDomain):
         return carried[..., 1:-1, 1:-1]
 
     def diffusion(self, carried, rates):
-        lap = _stencils.laplacian_padded(carried, self.stencil)
-        return [rates[i] * lap[i] for i in range(lap.shape[0])]
+        n = carried.shape[0]
+        if self.anisotropic and max(self.anisotropic) >= n:
+            raise ValueError(f"Lattice.anisotropic names species {max(self.anisotropic)} (0-based) but the model has "
+                             f"{n} species; name species by position: 0..{n - 1} or 'a'..'{_LETTERS[n - 1]}'")
+        links = [self._on_links(i, rates[i]) for i in range(n)]
+        lap = None
+        if not all(links):  # scalar rates, pointwise maps: the stencil, as before the flux form
+            lap = _stencils.laplacian_padded(carried, self.stencil)
+        return [self._link_term(carried[i], rates[i], i) if links[i] else rates[i] * lap[i] for i in range(n)]
+
+    def _on_links(self, i: int, rate) -> bool:
+        """Whether species i diffuses on the links (flux form or anisotropic): static."""
+        if i in self.anisotropic and self.polarity is not None:
+            return True
+        return self.maps == "flux" and tuple(jnp.shape(rate))[-2:] not in ((), (1,), (1, 1))
+
+    def _link_term(self, p, rate, i: int):
+        """sum_j w_ij D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8)."""
+        shape = (p.shape[-2] - 2, p.shape[-1] - 2)
+        rate = jnp.broadcast_to(jnp.asarray(rate, p.dtype), shape)
+        padded = _stencils.pad(rate, self.boundary)
+        if i in self.anisotropic and self.polarity is not None:
+            if self.polarity.ndim == 2 and tuple(self.polarity.shape) != shape:
+                raise ValueError(f"Lattice.polarity has shape {tuple(self.polarity.shape)}; the lattice is {shape}")
+            factors = _links.direction_factors(self.polarity, self.polarised)
+            if self.polarity.ndim == 2 or self.boundary != "wrap":
+                factors = tuple(jnp.broadcast_to(f, shape) for f in factors)
+            factors = _links.pad_factors(factors, self.boundary, shape)
+            rates = tuple(padded * f for f in factors)
+        else:
+            rates = (padded,) * 4
+        return _links.link_divergence(p, rates, self.stencil)
 
     def write(self, carried, new, size, dynamic):
         if dynamic:
@@ -88,6 +159,52 @@ class Lattice(AbstractDomain):
     def unblock(self, carried, block):
         """`carried` with a block computed by `block` written back into its corner."""
         return jax.lax.dynamic_update_slice(carried, block, (0,) * carried.ndim)
+
+
+MAPS = ("flux", "pointwise")
+_LETTERS = "abcdefghijklmnopqrstuvwxyz"
+
+
+def _species_indices(anisotropic) -> tuple:
+    """The anisotropic species as sorted 0-based positions (from indices or letters)."""
+    if isinstance(anisotropic, (str, int)):
+        anisotropic = (anisotropic,)
+    out = set()
+    for s in anisotropic:
+        if isinstance(s, str) and len(s) == 1 and s.lower() in _LETTERS:
+            out.add(_LETTERS.index(s.lower()))
+        elif isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0:
+            out.add(int(s))
+        else:
+            raise ValueError(f"Lattice.anisotropic entries must be species positions: an index >= 0 or a letter "
+                             f"'a'..'z' ('a' = first species) (got {s!r})")
+    return tuple(sorted(out))
+
+
+def _polarity_leaves(polarity, polarised):
+    """(angles with NaN replaced by 0, polarised mask or None) as array leaves."""
+    if polarity is None:
+        if polarised is not None:
+            raise ValueError("Lattice.polarised needs a polarity (an angle or a (rows, cols) array of angles)")
+        return None, None
+    angle = jnp.asarray(polarity, default_float())
+    if angle.ndim not in (0, 2):
+        raise ValueError(f"Lattice.polarity must be an angle (radians) or a (rows, cols) array of angles "
+                         f"(got shape {angle.shape})")
+    mask = None if polarised is None else jnp.asarray(polarised, default_float())
+    if mask is not None and mask.shape != angle.shape:
+        raise ValueError(f"Lattice.polarised must have the polarity's shape {angle.shape} (got {mask.shape})")
+    if is_concrete(angle):
+        values = np.asarray(angle)
+        if np.isinf(values).any():
+            raise ValueError("Lattice.polarity must be finite angles in radians, or NaN for an unpolarised cell")
+        nan = np.isnan(values)
+        if nan.any():
+            mask = jnp.asarray(~nan, default_float()) if mask is None else mask * jnp.asarray(~nan, mask.dtype)
+            angle = jnp.where(jnp.asarray(nan), 0.0, angle)
+    if mask is not None and is_concrete(mask) and not np.isin(np.asarray(mask), (0.0, 1.0)).all():
+        raise ValueError("Lattice.polarised must hold 1 (polarised) or 0 (unpolarised) per cell")
+    return angle, mask
 
 
 def as_domain(domain=None, *, stencil=None, boundary=None) -> AbstractDomain:

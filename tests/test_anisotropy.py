@@ -1,0 +1,247 @@
+"""Diffusion on the square lattice's links: per-cell rates in flux form (thesis eq. 4.7) and
+anisotropic diffusion along a polarity (eq. 4.8), against the NumPy oracle in link_oracle.py;
+thesis Figs. 5.1 and 5.13."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import morphojax as mj
+from morphojax import _serialise
+from morphojax.presets._anisotropy import FIG5_1_AMOUNT, fig5_1_rates
+
+import link_oracle as oracle
+
+STENCILS = ("nine-point", "five-point", "moore")
+BOUNDARIES = ("wrap", "no-flux")
+SHAPE = (12, 12)
+
+
+@pytest.fixture
+def x64():
+    with jax.enable_x64(True):
+        yield
+
+
+def _inputs(shape=SHAPE, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(3.0, 5.0, shape)
+    rate = rng.uniform(0.0, 1.0, shape)
+    rate[rng.random(shape) < 0.1] = 0.0  # impermeable cells
+    angle = rng.uniform(-np.pi, np.pi, shape)
+    angle[rng.random(shape) < 0.2] = np.nan  # unpolarised cells
+    return u, rate, angle
+
+
+def _term(domain, u, rate):
+    """The domain's diffusion term of one species `u` with rate `rate` (number or map)."""
+    u = jnp.asarray(u)[None]
+    rates = jnp.asarray(rate, u.dtype).reshape((1,) + (np.shape(rate) or (1, 1)))
+    return domain.diffusion(domain.carry(u, jnp.asarray(u.shape[1:]), False), rates)[0]
+
+
+# ---- operators against the oracle ---------------------------------------------------------------
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+@pytest.mark.parametrize("stencil", STENCILS)
+def test_link_operators_against_oracle(x64, stencil, boundary):
+    u, rate, angle = _inputs()
+    cases = [  # (domain, rate, the oracle's angle)
+        (mj.Lattice(stencil, boundary), rate, None),  # flux form of a map
+        (mj.Lattice(stencil, boundary, anisotropic="a", polarity=0.7), 0.6, 0.7),  # one polarity
+        (mj.Lattice(stencil, boundary, anisotropic=(0,), polarity=angle), rate, angle),  # per cell, some NaN
+    ]
+    for domain, d, a in cases:
+        got = np.asarray(_term(domain, u, d))
+        np.testing.assert_allclose(got, oracle.link_term(u, d, boundary, stencil, a), atol=1e-12)
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+def test_pointwise_maps_and_scalar_rates_keep_the_stencil(x64, boundary):
+    """maps='pointwise' is D(x) lap(u); a scalar rate takes the stencil's own path, bit for
+    bit, whatever the maps option; species not declared anisotropic ignore the polarity."""
+    u, rate, angle = _inputs(seed=1)
+    lap = np.asarray(mj.laplacian(u, boundary))
+    np.testing.assert_array_equal(np.asarray(_term(mj.Lattice(boundary=boundary, maps="pointwise"), u, rate)),
+                                  np.asarray(rate * jnp.asarray(lap)))
+    for domain in (mj.Lattice(boundary=boundary), mj.Lattice(boundary=boundary, maps="pointwise")):
+        np.testing.assert_array_equal(np.asarray(_term(domain, u, 0.3)), np.asarray(0.3 * jnp.asarray(lap)))
+    aniso_b = mj.Lattice(boundary=boundary, anisotropic="b", polarity=angle)
+    two = jnp.asarray(np.stack([u, u]))
+    terms = aniso_b.diffusion(aniso_b.carry(two, jnp.asarray(SHAPE), False), jnp.asarray([0.3, 0.3]).reshape(2, 1, 1))
+    np.testing.assert_array_equal(np.asarray(terms[0]), np.asarray(0.3 * jnp.asarray(lap)))
+    assert np.abs(np.asarray(terms[1]) - np.asarray(terms[0])).max() > 1e-3
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+@pytest.mark.parametrize("stencil", STENCILS)
+def test_isotropic_limit_is_the_plain_stencil(x64, stencil, boundary):
+    """No polarity: an anisotropic species diffuses as the stencil (exactly: the same path);
+    all cells unpolarised, or a constant map in flux form: the stencil to rounding."""
+    u, _, _ = _inputs(seed=2)
+    plain = np.asarray(_term(mj.Lattice(stencil, boundary), u, 0.4))
+    none = mj.Lattice(stencil, boundary, anisotropic="a")
+    np.testing.assert_array_equal(np.asarray(_term(none, u, 0.4)), plain)
+    unpolarised = mj.Lattice(stencil, boundary, anisotropic="a", polarity=np.full(SHAPE, np.nan))
+    np.testing.assert_allclose(np.asarray(_term(unpolarised, u, 0.4)), plain, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(_term(mj.Lattice(stencil, boundary), u, np.full(SHAPE, 0.4))), plain,
+                               atol=1e-13)
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+@pytest.mark.parametrize("stencil", STENCILS)
+def test_operator_is_symmetric_and_within_the_stability_bound(x64, stencil, boundary):
+    """The assembled operator (5 x 6 lattice) is symmetric (every cell has unit area, so the
+    mass matrix is the identity), its columns sum to zero (mass), it equals the oracle's
+    matrix, and its spectral radius is at most D_max times the stencil's."""
+    shape = (5, 6)
+    rng = np.random.default_rng(3)
+    rate = rng.uniform(0.0, 2.0, shape)
+    angle = rng.uniform(-np.pi, np.pi, shape)
+    angle[0, 1] = np.nan
+    domain = mj.Lattice(stencil, boundary, anisotropic="a", polarity=angle)
+    eye = jnp.eye(shape[0] * shape[1]).reshape((-1,) + shape)
+    m = np.asarray(jax.vmap(lambda e: _term(domain, e, rate))(eye)).reshape(eye.shape[0], -1).T
+    np.testing.assert_allclose(m, m.T, atol=1e-14)
+    np.testing.assert_allclose(m.sum(axis=0), 0.0, atol=1e-13)
+    np.testing.assert_allclose(m, oracle.operator_matrix(shape, rate, boundary, stencil, angle), atol=1e-13)
+    assert np.abs(np.linalg.eigvalsh(m)).max() <= rate.max() * domain.spectral_radius * (1 + 1e-12)
+
+
+# ---- runs: mass, stability, gradients, vmap, files ------------------------------------------------
+def _pure_diffusion(rate):
+    return mj.Bard(alpha=0.0, beta=0.0, sp=0.0, da=rate, db=rate, lower=-np.inf)
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+def test_mass_is_conserved(x64, boundary):
+    u, rate, angle = _inputs(seed=4)
+    state = mj.State.from_arrays([u, u[::-1]])
+    for domain in (mj.Lattice("nine-point", boundary), mj.Lattice("moore", boundary, anisotropic=("a", "b"),
+                                                                   polarity=angle)):
+        out = np.stack(mj.simulate(_pure_diffusion(rate), state, steps=200, dt=0.08, domain=domain).arrays())
+        np.testing.assert_allclose(out.sum(axis=(1, 2)), [u.sum(), u.sum()], rtol=1e-13)
+        assert np.abs(out - np.stack([u, u[::-1]])).max() > 0.1  # it did diffuse
+
+
+def test_dt_limit_refuses_an_unstable_dt():
+    u, rate, angle = _inputs(seed=5)
+    domain = mj.Lattice("moore", "wrap", anisotropic="a", polarity=angle)
+    limit = domain.max_stable_dt(rate.max())
+    assert limit == pytest.approx(2.0 / (12.0 * rate.max()))
+    state = mj.State.from_arrays([u, u])
+    with pytest.raises(ValueError, match="largest stable dt"):
+        mj.simulate(_pure_diffusion(rate), state, steps=1, dt=1.05 * limit, domain=domain)
+    mj.simulate(_pure_diffusion(rate), state, steps=1, dt=limit, domain=domain)
+
+
+def test_gradients_against_finite_differences(x64):
+    """d(loss)/d(polarity angle) and d(loss)/d(rate) of a Turing run with V anisotropic."""
+    shape = (10, 10)
+    rng = np.random.default_rng(6)
+    state = mj.State.from_arrays([rng.uniform(3.0, 5.0, shape), rng.uniform(3.0, 5.0, shape)])
+    weight = jnp.asarray(rng.normal(size=shape))
+    cells = jnp.asarray(rng.uniform(-1.0, 1.0, shape))
+
+    def loss(theta, db, spread):
+        domain = mj.Lattice("moore", "no-flux", anisotropic="b", polarity=theta + spread * cells)
+        out = mj.simulate(mj.Bard(16.0, 12.0, 0.05, 0.08, db), state, steps=30, dt=1.0, domain=domain)
+        return jnp.sum(out.fields[1] * weight)
+
+    args = (0.4, 0.01, 0.3)
+    grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(*args)
+    loss = jax.jit(loss)
+    for i, h in enumerate((1e-5, 1e-7, 1e-5)):
+        up, down = list(args), list(args)
+        up[i] += h
+        down[i] -= h
+        fd = (loss(*up) - loss(*down)) / (2 * h)
+        assert float(grads[i]) == pytest.approx(float(fd), rel=1e-5, abs=1e-9)
+    assert abs(float(grads[0])) > 1e-6  # the polarity matters
+
+
+def test_vmap_over_polarity_angles():
+    u, _, _ = _inputs(seed=7)
+    state = mj.State.from_arrays([u, u.T])
+    model = mj.Bard(16.0, 12.0, 0.05, 0.08, 0.01)
+
+    def run(theta):
+        return mj.simulate(model, state, steps=20, dt=1.0, domain=mj.Lattice("moore", anisotropic="b",
+                                                                              polarity=theta)).fields
+
+    thetas = jnp.asarray([0.0, 0.8, 2.0])
+    batched = np.asarray(jax.vmap(run)(thetas))
+    for i, t in enumerate(thetas):
+        np.testing.assert_allclose(batched[i], np.asarray(run(t)), rtol=1e-6, atol=1e-6)
+    assert np.abs(batched[0] - batched[1]).max() > 1e-3
+
+
+def test_domain_and_phase_round_trip():
+    _, rate, angle = _inputs(seed=8)
+    domain = mj.Lattice("moore", "no-flux", maps="pointwise", anisotropic=("b",), polarity=angle)
+    assert domain.anisotropic == (1,) and np.isfinite(np.asarray(domain.polarity)).all()
+    np.testing.assert_array_equal(np.asarray(domain.polarised), np.isfinite(angle))
+    back = _serialise.domain_from_dict(json.loads(json.dumps(_serialise.domain_to_dict(domain))))
+    assert (back.stencil, back.boundary, back.maps, back.anisotropic) == ("moore", "no-flux", "pointwise", (1,))
+    np.testing.assert_array_equal(np.asarray(back.polarity), np.asarray(domain.polarity))
+    np.testing.assert_array_equal(np.asarray(back.polarised), np.asarray(domain.polarised))
+    phase = mj.Phase(mj.Bard(da=rate), steps=3, dt=0.5, domain=domain)
+    again = mj.Phase.from_dict(json.loads(json.dumps(phase.to_dict())))
+    np.testing.assert_array_equal(np.asarray(again.domain.polarity), np.asarray(domain.polarity))
+    assert again.domain.anisotropic == (1,) and again.domain.maps == "pointwise"
+    plain = _serialise.domain_from_dict(json.loads(json.dumps(_serialise.domain_to_dict(mj.Lattice()))))
+    assert plain.polarity is None and plain.maps == "flux"
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="maps"):
+        mj.Lattice(maps="harmonic")
+    with pytest.raises(ValueError, match="anisotropic"):
+        mj.Lattice(anisotropic=("uv",))
+    with pytest.raises(ValueError, match="polarity must be an angle"):
+        mj.Lattice(anisotropic="a", polarity=np.zeros(3))
+    with pytest.raises(ValueError, match="polarity must be finite"):
+        mj.Lattice(anisotropic="a", polarity=np.inf)
+    u, _, _ = _inputs(seed=9)
+    state = mj.State.from_arrays([u, u])
+    with pytest.raises(ValueError, match="anisotropic names species 2"):
+        mj.simulate(mj.Bard(), state, steps=1, dt=0.1, domain=mj.Lattice(anisotropic="c", polarity=0.0))
+    with pytest.raises(ValueError, match="polarity has shape"):
+        mj.simulate(mj.Bard(), state, steps=1, dt=0.1, domain=mj.Lattice(anisotropic="a", polarity=np.zeros((3, 3))))
+    assert not mj.Lattice(anisotropic="a", polarity=0.0).supports_growth
+
+
+# ---- thesis figures ----------------------------------------------------------------------------
+def test_thesis_fig5_1_spreads_over_the_permeable_cells():
+    """75 units in cell 108 spread over cells 75-149 (rate 0.1, the others 0): each holds 1.0
+    by iteration 1000 (the thesis), none leaks into the impermeable cells, mass is kept."""
+    result = mj.run_experiment(mj.preset("thesis-fig5.1"), seed=0)
+    band = fig5_1_rates() > 0
+    final = np.asarray(result.state.arrays()[0])
+    assert band.sum() == 75 and final[~band].max() == 0.0
+    assert final.sum() == pytest.approx(FIG5_1_AMOUNT, rel=1e-6)
+    assert np.abs(final[band] - 1.0).max() < 1e-4
+
+
+def structure_tensor(field):
+    """Mean structure tensor (<gx^2>, <gy^2>, <gx gy>) of a (rows, cols) field: x along a row."""
+    gy, gx = np.gradient(np.asarray(field, float))
+    return (gx * gx).mean(), (gy * gy).mean(), (gx * gy).mean()
+
+
+def test_thesis_fig5_13_orientation():
+    """Only V anisotropic (polarity along a row): stripes along the rows, so the gradients
+    point across them (<gy^2> >> <gx^2>); only U: stripes across (<gx^2> >> <gy^2>); both
+    and isotropic: no strong direction (the quick form: 32 x 32 cells, 1500 iterations)."""
+    ratio = {}
+    for case in ("isotropic", "both", "v", "u"):
+        result = mj.run_experiment(mj.preset(f"thesis-fig5.13-{case}", quick=True), seed=0)
+        jxx, jyy, _ = structure_tensor(result.state.arrays()[1])
+        ratio[case] = jyy / jxx
+    assert ratio["v"] > 4.0, ratio
+    assert ratio["u"] < 0.25, ratio
+    for case in ("both", "isotropic"):
+        assert 0.4 < ratio[case] < 2.5, ratio
+        assert ratio["v"] > 2.5 * ratio[case] and ratio["u"] < ratio[case] / 2.5, ratio
