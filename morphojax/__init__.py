@@ -70,6 +70,7 @@ from .automata import (
     write_ply,
     write_species_meshes,
 )
+from .potts import Potts, PottsState, potts_blob, potts_image, type_clusters
 
 from ._version import __version__
 
@@ -177,4 +178,9 @@ __all__ = [
     "Wireworld",
     "wireworld_clock",
     "YoungCA",
+    "Potts",
+    "PottsState",
+    "potts_blob",
+    "potts_image",
+    "type_clusters",
 ]
