@@ -3,7 +3,9 @@
 The bounded Turing model (r = 12, s = 3, B >= 0) on a square lattice with the nine-point
 stencil (the reference), the thesis's Moore sum (`Lattice("moore")`), and the hexagonal
 lattice (`HexLattice`: the Laplacian and the neighbour sum on a torus, the Laplacian with
-no-flux). Reports Mcell-steps/s (cells x steps / s) and each domain's speed as a ratio of
+no-flux), and the square lattice's link form: a diffusion map (`scale` as an (n, n) array)
+in the flux form and the pointwise form, and species b anisotropic with one polarity angle
+or one per cell (wrap; Moore with no-flux). Reports Mcell-steps/s (cells x steps / s) and each domain's speed as a ratio of
 the nine-point step's timed in the same worker; every figure is the median over several
 fresh processes (see _harness.py). dt is the nine-point run's; every domain is stable at it.
 
@@ -25,19 +27,32 @@ DOMAINS = {  # name: constructor source (evaluated in the worker, after importin
     "hex laplacian (wrap)": "mj.HexLattice('wrap', 'laplacian')",
     "hex sum (wrap)": "mj.HexLattice('wrap', 'sum')",
     "hex laplacian (no-flux)": "mj.HexLattice('no-flux', 'laplacian')",
+    # per-cell rates and anisotropy on the links (domains/_links): `scale` as a (n, n) map
+    # (constant, so every case runs the same pattern), polarity one angle or one per cell
+    "square nine-point, rate map, flux form (wrap)": "mj.Lattice('nine-point', 'wrap')",
+    "square nine-point, rate map, pointwise (wrap)": "mj.Lattice('nine-point', 'wrap', maps='pointwise')",
+    "square nine-point, b anisotropic, one angle (wrap)": "mj.Lattice('nine-point', 'wrap', anisotropic='b', "
+                                                          "polarity=0.3)",
+    "square nine-point, b anisotropic, angle per cell (wrap)": "mj.Lattice('nine-point', 'wrap', anisotropic='b', "
+                                                               "polarity=ANGLES)",
+    "square moore, b anisotropic, angle per cell (no-flux)": "mj.Lattice('moore', 'no-flux', anisotropic='b', "
+                                                              "polarity=ANGLES)",
 }
+MAPS = {"square nine-point, rate map, flux form (wrap)", "square nine-point, rate map, pointwise (wrap)"}
 
 
 def worker(n: int, steps: int) -> dict:
     import jax
+    import numpy as np
 
     import morphojax as mj
 
     state = mj.paper_state(jax.random.key(0), (n, n))
-    model = mj.Turing(R, S)
+    angles = np.random.default_rng(0).uniform(-np.pi, np.pi, (n, n))
     out = {"n": n}
     for name, source in DOMAINS.items():
-        domain = eval(source, {"mj": mj})  # noqa: S307 (our own table above)
+        domain = eval(source, {"mj": mj, "ANGLES": angles})  # noqa: S307 (our own table above)
+        model = mj.Turing(R, np.full((n, n), S) if name in MAPS else S)
         run = lambda: jax.block_until_ready(mj.simulate(model, state, steps=steps, dt=DT, domain=domain).fields)  # noqa: E731
         run()  # compile
         out[name] = n * n / (timeit(run, min_time=1.0) / steps) / 1e6
