@@ -187,3 +187,50 @@ def test_quick_presets_run_and_saturate(name):
     limit = float(exp.phases[-1].model.upper[0])
     assert r.min() >= 0.0 and r.max() <= limit
     assert np.mean((r == 0.0) | (r == limit)) > 0.5
+
+
+# ---- Laplacian growth (Fig. 7.3, Listing A.13) ------------------------------------------------
+def test_laplacian_growth_against_oracle():
+    """80 iterations on 16 x 18 from three seed cells, with the run's own uniform draws
+    (fold_in(key, n)), against the listing's rules written out in NumPy (float64)."""
+    with jax.enable_x64(True):
+        key, shape, seeds = jax.random.key(5), (16, 18), ((7, 8), (7, 9), (7, 10))
+        model = mj.LaplacianGrowth()
+        run = model.run(key, 80, shape, seeds, save_every=10)
+        p, g, c = (np.asarray(a) for a in model.initial(shape, seeds))
+        for n in range(80):
+            u = np.asarray(jax.random.uniform(jax.random.fold_in(key, n), shape, jnp.float64))
+            p, g, c = oracle.laplacian_iteration(p, g, c, u)
+            if (n + 1) % 10 == 0:
+                np.testing.assert_array_equal(run.p_frames[(n + 1) // 10], p)
+                np.testing.assert_allclose(run.g_frames[(n + 1) // 10], g, rtol=0, atol=1e-12)
+        assert p.sum() > 3  # it grew
+        np.testing.assert_array_equal(run.p, p)
+        np.testing.assert_array_equal(run.c, c)
+
+
+def test_laplacian_growth_invariants():
+    """600 iterations on 60 x 60 from the listing's three seed cells: P is 0 or 1 after every growth round,
+    the aggregate only grows, each new cell had 3 or 4 aggregate neighbours, it stays one
+    8-connected piece, G is lowest on the aggregate; the same key gives the same run."""
+    from scipy import ndimage
+
+    model = mj.LaplacianGrowth()
+    shape, seeds = (60, 60), ((29, 29), (29, 30), (29, 31))
+    run = model.run(jax.random.key(0), 600, shape, seeds, save_every=2)
+    frames = np.asarray(run.p_frames)
+    assert set(np.unique(frames)) <= {0.0, 1.0}
+    for before, after in zip(frames[:-1], frames[1:]):
+        new = (after == 1) & (before == 0)
+        assert not ((before == 1) & (after == 0)).any()
+        count = ndimage.convolve(before, np.ones((3, 3)), mode="constant") - before
+        assert np.isin(count[new], (3.0, 4.0)).all()
+    agg = np.asarray(run.aggregate)
+    assert agg.sum() > 50 and ndimage.label(agg, structure=np.ones((3, 3)))[1] == 1
+    g = np.asarray(run.g)
+    assert g[agg].mean() < g[~agg].mean()
+    np.testing.assert_array_equal(model.run(jax.random.key(0), 600, shape, seeds, save_every=2).p, run.p)
+    with pytest.raises(ValueError, match="LaplacianGrowth.g_diffusion"):
+        mj.LaplacianGrowth(g_diffusion=0.3)
+    with pytest.raises(ValueError, match="seeds must lie inside"):
+        model.run(jax.random.key(0), 2, (10, 10), ((10, 0),))

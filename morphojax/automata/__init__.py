@@ -13,6 +13,7 @@ Where each job lives (private modules, re-exported here and by `morphojax`):
   methods; `_choice`: the plan and `auto`'s cost model; `_caches`: plans and kernel
   spectra of concrete models; `_soft`: the differentiable relaxation;
 - `_life`: life-like (B/S) rules; `_wireworld`: Wireworld (thesis Fig. 7.2);
+  `_laplacian`: the thesis's Laplacian (DBM) growth (Fig. 7.3);
 - `_cells`: random lattices and the one-hot form; `_observables`: volume fractions,
   order parameter, convergence, weighted volume difference;
 - `_pictures`: images and slice montages; `_meshes`: marching-cubes meshes, PLY and OBJ.
@@ -34,6 +35,7 @@ from ._observables import (
 from ._pictures import SPECIES_COLOURS, UNDIFFERENTIATED, cells_image, slice_montage, state_colours
 from ._young import METHODS, YoungCA
 from ._wireworld import WIREWORLD_COLOURS, Wireworld, wireworld_clock
+from ._laplacian import LaplacianGrowth, LaplacianRun
 
 __all__ = [
     "AbstractAutomaton",
@@ -44,6 +46,8 @@ __all__ = [
     "wireworld_clock",
     "hard_cells",
     "has_converged",
+    "LaplacianGrowth",
+    "LaplacianRun",
     "LifeLike",
     "METHODS",
     "NEIGHBOURHOODS",

@@ -1,5 +1,5 @@
-"""Presets of the thesis's chapter 7 (saturation): Wireworld (Fig. 7.2) and the
-single-reagent reinforcement patterns (Figs. 7.4, 7.7, 7.8).
+"""Presets of the thesis's chapter 7 (saturation): Wireworld (Fig. 7.2), Laplacian growth
+(Fig. 7.3) and the single-reagent reinforcement patterns (Figs. 7.4, 7.7, 7.8).
 
 The reinforcement patterns run `RuleReinforcement` on the thesis's own stencil,
 `Lattice(stencil="moore", boundary="no-flux")` (its `sqr_grid` without `wrap`: the space
@@ -22,11 +22,12 @@ Listing A.15 stops at 2,000 iterations while its text says the pattern is stable
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 
 from .._experiment import Experiment, Initial, Phase
 from .._render import Gradient, colormap_table, montage, to_image
-from ..automata import WIREWORLD_COLOURS, Wireworld, wireworld_clock
+from ..automata import WIREWORLD_COLOURS, LaplacianGrowth, Wireworld, wireworld_clock
 from ..domains import Lattice
 from ..models import RuleReinforcement
 from ._automaton_outputs import save_cells_npz
@@ -125,6 +126,32 @@ def _fig7_2(seed, quick, out, frames):
     metadata = {"automaton": "Wireworld", "lattice": [15, 15], "initial": "thesis Listing A.12 clock", "steps": gens}
     files = [str(out), str(save_cells_npz(out, result.cells, metadata, frames=np.asarray(result.frames)))]
     return {"steps": gens, "electrons_out": int(np.sum(wire_end == 1)), "files": files}
+
+
+# ---- Fig. 7.3 (Listing A.13): Laplacian growth ------------------------------------------------
+AGGREGATE_COLOURS = Gradient([(0.0, "#2040c0"), (1.0, "#d02020")])  # inactive blue, active red
+FIELD_COLOURS = Gradient([(0.0, "#2040c0"), (0.5, "#20c040"), (0.75, "#e0d020"), (1.0, "#d02020")])  # low blue, high red
+
+
+@registered(AutomatonPreset, "thesis-fig7.3", "Laplacian growth (dielectric breakdown model), Listing A.13: an "
+            "aggregate grows from 3 cells toward the high probability field", "thesis Fig. 7.3")
+def _fig7_3(seed, quick, out, frames):
+    """The listing's 100 x 100 grid for 3,200 iterations (quick: 40 x 40, 600, seeds at its
+    centre): the aggregate (left) and the field G (right)."""
+    shape, iterations = ((40, 40), 600) if quick else ((100, 100), 3200)
+    mid = shape[0] // 2 - 1
+    seeds = ((mid, mid), (mid, mid + 1), (mid, mid + 2))
+    run = LaplacianGrowth().run(jax.random.key(seed), iterations, shape, seeds)
+    scale = max(1, 300 // shape[0])
+    montage([to_image(np.asarray(run.p), cmap=AGGREGATE_COLOURS, vmin=0.0, vmax=1.0, scale=scale),
+             to_image(np.asarray(run.g), cmap=FIELD_COLOURS, scale=scale)], 2,
+            col_labels=["aggregate (red)", "probability field G"],
+            title=f"Laplacian growth, thesis Fig. 7.3 (Listing A.13), {iterations} iterations").save(out)
+    size = int(np.sum(np.asarray(run.aggregate)))
+    metadata = {"simulator": "LaplacianGrowth", "lattice": list(shape), "seeds": [list(s) for s in seeds],
+                "seed": seed, "iterations": iterations, "aggregate_cells": size}
+    files = [str(out), str(save_cells_npz(out, np.asarray(run.aggregate, np.int8), metadata, field=np.asarray(run.g)))]
+    return {"steps": iterations, "aggregate_cells": size, "files": files}
 
 
 __all__ = ["FIG7_4", "FIG7_7", "FIG7_8", "wireworld_image"]
