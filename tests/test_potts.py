@@ -231,3 +231,21 @@ def test_blob_matches_the_paper_initializer():
     assert volumes[1:].max() == 25 and (volumes[1:] > 0).all()
     assert set(np.unique(types[1:])) == {1, 2}
     assert abs((types[1:] == 1).mean() - 0.5) < 0.1
+
+
+def test_preset_files_render_and_carry_their_parameters(tmp_path, regimes):
+    from morphojax.cli._run import file_kind
+    from morphojax.presets._potts import potts_picture, run_series
+
+    out = tmp_path / "series.png"
+    summary = run_series((0.5, 18.0), 0, True, out, "test", 2)  # the quick size: compiled by `regimes`
+    assert file_kind(out.with_suffix(".npz")) == "potts"
+    assert potts_picture(out.with_suffix(".npz")).size[0] > 2 * 40 * 3
+    with np.load(out.with_suffix(".npz")) as data:
+        ids, types = data["ids"], data["types"]
+    assert ids.shape == (2, 40, 40)
+    again = mj.Potts.paper003(0.5).run(mj.potts_blob((40, 40), 16, 5, key=jax.random.key(0)), 200,
+                                       jax.random.fold_in(jax.random.key(0), 1))
+    np.testing.assert_array_equal(ids[0], np.asarray(again.ids))  # the file is the run its metadata names
+    assert summary["runs"][0]["like_contacts"] > summary["runs"][1]["like_contacts"]
+    assert "potts-fig10" in mj.PRESETS and mj.PRESETS["potts-fig10"].kind == "potts"

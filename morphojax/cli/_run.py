@@ -134,7 +134,8 @@ def _run_reaction_diffusion(item, args, out: Path):
     return 0
 
 
-RUNNERS = {"reaction-diffusion": _run_reaction_diffusion, "automaton": _run_automaton}  # by Preset.kind
+RUNNERS = {"reaction-diffusion": _run_reaction_diffusion, "automaton": _run_automaton,
+           "potts": _run_automaton}  # by Preset.kind
 
 
 def _run_one(exp, args, npz: Path, resume=None):
@@ -263,6 +264,11 @@ def _cmd_render(args):
     if kind == "automaton":
         automaton_picture(args.result, args.scale).save(out)
         return 0
+    if kind == "potts":
+        from morphojax.presets._potts import potts_picture
+
+        potts_picture(args.result, args.scale).save(out)
+        return 0
     state, meta = mj.load_npz(args.result)
     args.scale = 2 if args.scale is None else args.scale
     if args.species is None and args.cmap is None and "experiment" in meta:
@@ -274,7 +280,7 @@ def _cmd_render(args):
 
 
 def file_kind(path: Path) -> str:
-    """What a morphojax `.npz` holds: "result" (a run's species), "sweep" or "automaton"."""
+    """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton" or "potts"."""
     import numpy as np
 
     if not Path(path).exists():
@@ -287,6 +293,8 @@ def file_kind(path: Path) -> str:
         raise ValueError(f"{path} is not a morphojax .npz file ({err})") from err
     if "cells" in names:
         return "automaton"
+    if "ids" in names and meta.get("kind") == "potts":
+        return "potts"
     if "config" in meta and "table" in meta:
         return "sweep"
     if "species" in meta:

@@ -16,6 +16,7 @@ from ._experiments import FIG4_RATIOS, leopard_row_weights
 from . import _automata  # noqa: F401  (registers the automaton presets)
 from . import _reactions  # noqa: F401  (registers the classic reactions' Turing patterns)
 from . import _lattices  # noqa: F401  (registers the square/hexagonal lattice presets)
+from . import _potts  # noqa: F401  (registers the cellular Potts presets)
 from . import _anisotropy  # noqa: F401  (registers thesis Figs. 5.1 and 5.13: per-cell rates, anisotropy)
 from . import _meshes  # noqa: F401  (registers the triangle-mesh presets)
 from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets: Wireworld, reinforcement patterns)
