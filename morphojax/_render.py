@@ -17,7 +17,7 @@ import numpy as np
 from PIL import Image, ImageColor, ImageDraw, ImageFont
 
 from . import _colormap_data
-from .domains import HexLattice
+from .domains import HexLattice, Mesh
 
 
 def _hex_table(chunks) -> np.ndarray:
@@ -306,4 +306,8 @@ def render_experiment(state, experiment, scale: int = 1, vmin=None, vmax=None) -
         from ._render_hex import hex_image
 
         return hex_image(array, scale=max(2, 8 * scale), **style)
+    if isinstance(experiment.phases[-1].domain, Mesh):  # the surface, seen from one side
+        from ._render_mesh import mesh_image
+
+        return mesh_image(experiment.phases[-1].domain, array, size=384 * max(1, scale), **style)
     return to_image(array, scale=scale, **style)

@@ -233,3 +233,23 @@ def test_mesh_image(small):
     img = mj.mesh_image(small, np.asarray(small.vertices[:, 2]), size=120)
     arr = np.asarray(img)
     assert img.size == (120, 120) and arr.std() > 10  # a drawn, shaded surface on the background
+
+
+def test_cli_mesh_and_preset_picture(tmp_path):
+    from morphojax.cli import main
+
+    src = tmp_path / "ball.off"
+    ball = mj.Mesh.icosphere(2, 5.0)
+    import trimesh
+
+    trimesh.Trimesh(ball.vertices, ball.faces, process=False).export(str(src))
+    out = tmp_path / "ball.ply"
+    assert main(["mesh", str(src), "--model", "gray-scott", "--steps", "20", "--out", str(out), "--quiet"]) == 0
+    v, f, c = read_ply(out, colours=True)
+    assert len(v) == ball.n_vertices and c is not None and (tmp_path / "ball.png").exists()
+    assert main(["mesh", str(src), "--dt", "100", "--steps", "5", "--out", str(out), "--quiet"]) == 2  # refused
+    exp = mj.preset("mesh-gray-scott-spots-sphere", quick=True)
+    state = exp.initial.build(jax.random.key(0))
+    assert state.ndim == 1 and state.shape == (exp.phases[0].domain.n_vertices,)
+    img = mj.render_experiment(state, exp)
+    assert img.size == (384, 384)

@@ -15,10 +15,10 @@ import argparse
 import sys
 from importlib.metadata import entry_points
 
-from . import _ca, _run, _sweep
+from . import _ca, _mesh, _run, _sweep
 
 ENTRY_POINT_GROUP = "morphojax.commands"
-CORE_COMMANDS = (_run.register, _sweep.register, _ca.register)
+CORE_COMMANDS = (_run.register, _sweep.register, _ca.register, _mesh.register)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -16,8 +16,8 @@ mass-weighted total sum_i M_i u_i.
 
 The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
 as a padded table (vertices, max degree) of indices with their weights (zero on padding)
-and the inverse masses. Applying it in JAX is then a gather and a row sum, no scatter:
-it fuses with the reaction into one loop on CPU. Stability: forward Euler on pure
+and the inverse masses. Applying it in JAX is one gather per column of the table and a
+sum, no scatter: it fuses with the reaction into one loop on CPU. Stability: forward Euler on pure
 diffusion is stable while dt * D * rho <= 2, rho the largest eigenvalue of M^-1 W_L (the
 Laplacian is negative semi-definite for any mesh: it is the Dirichlet energy of the linear
 interpolant); rho is computed at construction by Lanczos iterations on the symmetric form
@@ -236,8 +236,14 @@ class Mesh(AbstractDomain):
     def _operator(self, x):
         x = jnp.asarray(x)
         w = self.weights.astype(x.dtype) if jnp.issubdtype(x.dtype, jnp.floating) else self.weights
-        # gather the neighbours and sum each row: (..., V, K) -> (..., V); padding has w = 0
-        return jnp.sum(w * (x[..., self.neighbours] - x[..., None]), axis=-1) * self.inverse_mass.astype(w.dtype)
+        # one 1D gather per neighbour slot, accumulated (padding has w = 0): XLA:CPU runs
+        # these as fused loops, while one (V, K) gather runs element by element, about 20x
+        # slower (benchmarks/results/bench_mesh.md); the indices were checked at construction
+        acc = jnp.zeros_like(x)
+        for k in range(self.neighbours.shape[1]):
+            neighbour = x.at[..., self.neighbours[:, k]].get(mode="promise_in_bounds")
+            acc = acc + w[:, k] * (neighbour - x)
+        return acc * self.inverse_mass.astype(w.dtype)
 
     def carry(self, fields, size, dynamic):
         if dynamic:
@@ -317,7 +323,7 @@ class Mesh(AbstractDomain):
     @classmethod
     def capsule(cls, radius: float = 1.0, length: float = 3.0, spacing: float = 0.1,
                 mass: str = "voronoi") -> "Mesh":
-        """A capsule along z (a body-like shape): a cylinder of `radius` and `length` with
+        """A capsule along x (a body-like shape): a cylinder of `radius` and `length` with
         hemispherical ends, triangles about `spacing` wide."""
         if not (radius > 0 and length >= 0 and spacing > 0):
             raise ValueError(f"Mesh.capsule needs radius > 0, length >= 0, spacing > 0 (got {radius}, {length}, "
@@ -331,7 +337,8 @@ class Mesh(AbstractDomain):
                      np.where(s > arc + length, length / 2 + radius * np.cos((total - s) / radius),
                               s - arc - length / 2))
         r[0] = r[-1] = 0.0
-        return cls(*revolve(r, z, spacing, closed=False), mass)
+        v, f = revolve(r, z, spacing, closed=False)
+        return cls(v[:, [2, 0, 1]], f, mass)  # the axis along x (a cyclic swap keeps the winding)
 
 
 def _per_vertex(rate):
