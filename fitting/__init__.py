@@ -2,8 +2,9 @@
 
     import fitting
     target = fitting.load_target("targets/cheetah-01.jpg", crop=(300, 200, 700, 500), invert=True)
-    result = fitting.fit(target, model="turing", fit=["ratio", "scale"])
-    result.params, result.loss, result.noise_floor
+    result = fitting.fit(target)  # model="auto": every family screened, the best fitted
+    result.family, result.params, result.intervals, result.undetermined, result.ranking
+    result.render("coat.png", size=1024)  # the fitted coat in the photo's colours
     result.save_json("fit.json"); result.preview("fit.png")
 
 How it works (and why): see `fitting._fit` (stages), `fitting._stats` (statistics),
@@ -15,7 +16,11 @@ dominated by where single spots sit and grow without bound, so only the final re
 differentiated); Nelder-Mead takes over when gradients do not help.
 """
 
-from ._fit import METHODS, FitResult, fit, gradient_descent
+from ._auto import penalised
+from ._families import FAMILIES, Family, family
+from ._fit import DEFAULTS, METHODS, FitResult, fit, gradient_descent, progress_default
+from ._palette import colourise, kmeans, photo_palette
+from ._uncertainty import laplace_intervals
 from ._report import loss_curve, preview, region_stats
 from ._simulator import Simulator
 from ._space import DEFAULT_BOUNDS, ParamSpace
@@ -24,7 +29,10 @@ from ._target import CHANNELS, Target, estimate_cell_pixels, load_target
 
 __all__ = [
     "CHANNELS",
+    "DEFAULTS",
     "DEFAULT_BOUNDS",
+    "FAMILIES",
+    "Family",
     "FitResult",
     "METHODS",
     "ParamSpace",
@@ -32,14 +40,21 @@ __all__ = [
     "StatsConfig",
     "Target",
     "distance",
+    "colourise",
     "estimate_cell_pixels",
+    "family",
     "fit",
     "gradient_descent",
+    "kmeans",
+    "laplace_intervals",
     "load_target",
     "loss_curve",
     "mean_stats",
     "noise_of",
+    "penalised",
+    "photo_palette",
     "preview",
+    "progress_default",
     "region_stats",
     "residuals",
     "stats_vector",

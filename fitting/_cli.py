@@ -30,36 +30,54 @@ def _pairs(items, what: str) -> dict:
 
 
 def register(subparsers) -> None:
-    """Add the `fit` subcommand to an argparse subparsers object."""
+    """Add the `fit` subcommand to an argparse subparsers object (its defaults are `fitting.DEFAULTS`)."""
+    from ._fit import DEFAULTS as D
+    from ._families import FAMILIES
+
     p = subparsers.add_parser("fit", help="fit model parameters to a photo's texture statistics",
                               description="Fit parameters of a model so that its simulated texture matches a photo. "
                                           "Writes a JSON report (top-level 'params') and a preview picture.")
     p.add_argument("photo", type=Path, help="image file (any format pillow reads)")
-    p.add_argument("--model", default="turing", help="turing, bard, gray-scott or reinforcement (default turing)")
-    p.add_argument("--fit", default="ratio,scale", help="comma-separated parameters to fit (default ratio,scale)")
+    p.add_argument("--model", default=D["model"],
+                   help=f"auto (screen every family, fit the best), {', '.join(FAMILIES)} or another model name "
+                        f"(default {D['model']})")
+    p.add_argument("--fit", default=D["fit"], help="comma-separated parameters to fit (default: the family's own)")
     p.add_argument("--fixed", action="append", metavar="NAME=VALUE", help="hold a parameter at a value")
     p.add_argument("--bounds", action="append", metavar="NAME=LOW:HIGH", help="bounds of a fitted parameter")
     p.add_argument("--crop", default=None, metavar="X0,Y0,X1,Y1", help="pixel box of the coat region")
     p.add_argument("--channel", default="luminance", help="luminance, red, green, blue, alpha, saturation, value")
     p.add_argument("--invert", action="store_true", help="dark pigment as high values (e.g. black spots = high B)")
-    p.add_argument("--cell-pixels", type=float, default=None, help="photo pixels per lattice cell (default: estimated)")
-    p.add_argument("--no-binarise", action="store_true",
-                   help="compare raw intensities instead of soft pigment maps (the default for photos)")
-    p.add_argument("--orientation", action="store_true", help="add the structure-tensor orientation (stripes)")
-    p.add_argument("--shape", type=int, nargs=2, default=(64, 64), metavar=("ROWS", "COLS"))
-    p.add_argument("--steps", type=int, default=8000)
-    p.add_argument("--window", type=int, default=1000, help="steps differentiated at the end of each run")
-    p.add_argument("--seeds", type=int, default=4, help="simulations averaged per evaluation")
-    p.add_argument("--design", type=int, default=None, help="points per design round (default 12 per parameter)")
-    p.add_argument("--rounds", type=int, default=2, help="refinement rounds of the design")
-    p.add_argument("--keep", type=int, default=2, help="local searches from the best design points")
-    p.add_argument("--method", default="bfgs", help="bfgs, lm, nelder-mead or gd")
-    p.add_argument("--max-steps", type=int, default=40)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cell-pixels", type=float, default=None,
+                   help="photo pixels per lattice cell (default: estimated, 10 cells per pattern wavelength)")
+    p.add_argument("--no-binarise", dest="binarise", action="store_false", default=D["binarise"],
+                   help="compare raw intensities instead of soft pigment maps (the default)")
+    p.add_argument("--orientation", action="store_true", default=D["orientation"],
+                   help="add the structure-tensor orientation (stripes)")
+    p.add_argument("--shape", type=int, nargs=2, default=D["shape"], metavar=("ROWS", "COLS"))
+    p.add_argument("--steps", type=int, default=D["steps"], help="steps per simulation (default: the family's)")
+    p.add_argument("--window", type=int, default=D["window"],
+                   help="steps differentiated at the end of each run (default: the family's)")
+    p.add_argument("--seeds", type=int, default=D["seeds"], help="simulations averaged per evaluation")
+    p.add_argument("--design", type=int, default=D["n_design"], help="points per design round (default 12 per parameter)")
+    p.add_argument("--rounds", type=int, default=D["rounds"], help="refinement rounds of the design")
+    p.add_argument("--keep", type=int, default=D["keep"], help="local searches from the best design points")
+    p.add_argument("--method", default=D["method"], help="bfgs, lm, nelder-mead or gd")
+    p.add_argument("--max-steps", type=int, default=D["max_steps"])
+    p.add_argument("--seed", type=int, default=D["seed"])
     p.add_argument("--json", type=Path, required=True, help="output JSON report")
-    p.add_argument("--preview", type=Path, default=None, help="output picture: target | fit | loss curve")
-    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--preview", type=Path, default=None,
+                   help="output picture: target | fit | loss curve | fit in the photo's colours")
+    p.add_argument("--sample", type=Path, default=None,
+                   help="output grey PNG: one simulated field of the fit at lattice resolution, pigment bright")
+    p.add_argument("--render", type=Path, default=None, help="output picture: the fitted coat at 1024 px, photo colours")
+    p.add_argument("--progress", dest="progress", action="store_const", const=True, default=D["progress"],
+                   help="show the progress bar (default: when attached to a terminal)")
+    p.add_argument("--no-progress", dest="progress", action="store_const", const=False)
     p.set_defaults(func=run)
+
+
+# argparse destination -> `fitting.fit` keyword (the names that differ)
+CLI_TO_API = {"design": "n_design"}
 
 
 def run(args) -> int:
@@ -78,13 +96,17 @@ def run(args) -> int:
     result = fitting.fit(target, model=args.model, fit=args.fit, fixed=fixed, bounds=bounds, shape=tuple(args.shape),
                          steps=args.steps, window=args.window, seeds=args.seeds, seed=args.seed, n_design=args.design,
                          rounds=args.rounds, keep=args.keep, method=args.method, max_steps=args.max_steps,
-                         stats=fitting.StatsConfig(binarise=not args.no_binarise, orientation=args.orientation),
-                         progress=not args.no_progress)
+                         stats=fitting.StatsConfig(binarise=args.binarise, orientation=args.orientation),
+                         progress=args.progress)
     result.save_json(args.json)
-    if args.preview is not None:
-        args.preview.parent.mkdir(parents=True, exist_ok=True)
-        result.preview(args.preview)
-    print(json.dumps({"params": result.params, "loss": result.loss, "noise_floor": result.noise_floor,
-                      "seconds": round(result.timings["total"], 1), "json": str(args.json),
-                      "preview": str(args.preview) if args.preview else None}))
+    for path, write in ((args.preview, result.preview), (args.sample, result.save_sample),
+                        (args.render, lambda f: result.render(f, size=1024))):
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write(path)
+    print(json.dumps({"family": result.family, "params": result.params, "intervals": result.intervals,
+                      "undetermined": result.undetermined, "loss": result.loss, "noise_floor": result.noise_floor,
+                      "cell_pixels": target.cell_pixels, "seconds": round(result.timings["total"], 1),
+                      "json": str(args.json), "preview": str(args.preview) if args.preview else None}))
+    print(result.describe())
     return 0

@@ -62,13 +62,64 @@ class FitResult:
     fields: dict
     config: dict
     target: dict
+    family: str = ""
+    score: float = float("nan")  # the loss with the config's fixed noise scales (same yardstick for every family)
+    ranking: list = dataclasses.field(default_factory=list)
+    intervals: dict = dataclasses.field(default_factory=dict)
+    undetermined: list = dataclasses.field(default_factory=list)
+    palette: list | None = None
+    simulator: Any = dataclasses.field(default=None, repr=False)
+
+    @property
+    def sample(self) -> np.ndarray:
+        """One simulated field of the fit at lattice resolution, in [0, 1] with the pigment
+        bright: the species compared with the target, so orientation and polarity are the
+        target's after `invert`."""
+        from ._report import unit
+
+        return unit(self.fields["fit"])
+
+    def save_sample(self, path) -> Path:
+        """Write `sample` as a grey PNG (one pixel per lattice cell)."""
+        from PIL import Image
+
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        Image.fromarray(np.round(255 * self.sample).astype(np.uint8), "L").save(path)
+        return path
+
+    def render(self, path=None, size=512, palette="photo", seed: int = 0):
+        """The fitted coat as a large picture (PIL image; saved when `path` is given).
+
+        size: pixels (an int for a square, or (width, height)); palette: "photo" (the
+        target crop's colours, see `fitting.photo_palette`), "grey", or a list of
+        (position, (r, g, b)) stops. Models are re-simulated on a larger wrapped lattice
+        at the target's cells per pixel, so the picture wraps seamlessly; experiments tile
+        their fitted field."""
+        from ._palette import render_coat
+
+        img = render_coat(self, size=size, palette=palette, seed=seed)
+        if path is not None:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            img.save(path)
+        return img
+
+    def describe(self) -> str:
+        """What the fit found, in words: the family, each parameter with its interval, which
+        are not determined, and how far from the noise floor the fit is."""
+        from ._report import describe
+
+        return describe(self)
 
     def to_json(self) -> dict:
         """Everything in the result as a JSON-ready dict (top-level 'params')."""
         model = mj.model_to_dict(self.model) if isinstance(self.model, mj.AbstractModel) else self.model.to_dict()
         return mj.to_jsonable({
-            "params": self.params, "loss": self.loss, "noise_floor": self.noise_floor,
+            "params": self.params, "family": self.family, "loss": self.loss, "noise_floor": self.noise_floor,
             "loss_over_noise_floor": self.loss / self.noise_floor if self.noise_floor > 0 else None,
+            "score": self.score if np.isfinite(self.score) else None,
+            "ranking": self.ranking, "intervals": {k: list(v) for k, v in self.intervals.items()},
+            "undetermined": list(self.undetermined), "summary": self.describe(), "palette": self.palette,
             "model": model, "target": self.target, "config": self.config, "timings": self.timings,
             "stats": self.stats, "report": self.report, "design": self.design, "history": self.history,
         })
@@ -171,63 +222,137 @@ class _Recorder:
         self.rows.append({"stage": self.stage, "start": self.start, "evaluation": len(self.rows),
                           "loss": float(loss), "z": np.asarray(z).tolist()})
         if self.bar is not None:
-            self.bar.update(1)
-            self.bar.set_postfix(loss=f"{float(loss):.3g}", stage=self.stage)
+            self.bar.update(self.stage, float(loss))
 
 
-def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=None, shape=(64, 64),
-        steps: int = 8000, window: int = 1000, seeds: int = 4, seed: int = 0, design: str = "lhs",
-        n_design: int | None = None, rounds: int = 2, keep: int = 2, method: str = "bfgs", max_steps: int = 40, fallback: bool = True,
-        stats: StatsConfig = StatsConfig(), boundary: str = "wrap", species=None, batch_size: int = 8,
-        noise_seeds: int = 8, learning_rate: float = 0.05, length_scale: str | None = "scale",
-        progress: bool = False,
-        simulator: Simulator | None = None) -> FitResult:
+# One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
+DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4, "seed": 0,
+            "n_design": None, "rounds": 2, "keep": 2, "method": "bfgs", "max_steps": 40, "binarise": True,
+            "orientation": False, "progress": None}
+
+
+def progress_default() -> bool:
+    """`progress=None` means on when attached to a terminal or running in a notebook."""
+    import sys
+
+    try:
+        from IPython import get_ipython
+
+        shell = get_ipython()
+        if shell is not None and type(shell).__name__ == "ZMQInteractiveShell":
+            return True
+    except ImportError:
+        pass
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def _names(fit) -> list | None:
+    if fit is None:
+        return None
+    return list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
+
+
+def _resolve(model, names, shape):
+    """(family or None, template, fitted names, family bounds) for a model argument."""
+    from ._families import FAMILIES, family, family_of
+
+    if isinstance(model, str):
+        fam = family(model) if model in FAMILIES else family_of(model)
+        template = fam.make(tuple(shape)) if fam is not None else _as_template(model, shape)
+    else:
+        template = _as_template(model, shape)
+        fam = family_of(template)
+    if names is None:
+        if fam is None:
+            raise ValueError(f"fit=None needs a model family ({', '.join(FAMILIES)}); for this model or "
+                             "experiment name the parameters to fit, e.g. fit=['ratio', 'scale']")
+        names = list(fam.fit)
+    return fam, template, names, (dict(fam.bounds) if fam is not None else {})
+
+
+def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bounds=None, shape=DEFAULTS["shape"],
+        steps: int | None = DEFAULTS["steps"], window: int | None = DEFAULTS["window"], seeds: int = DEFAULTS["seeds"],
+        seed: int = DEFAULTS["seed"], design: str = "lhs", n_design: int | None = DEFAULTS["n_design"],
+        rounds: int = DEFAULTS["rounds"], keep: int = DEFAULTS["keep"], method: str = DEFAULTS["method"],
+        max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
+        boundary: str = "wrap", species=None, batch_size: int = 8, noise_seeds: int = 8,
+        learning_rate: float = 0.05, length_scale: str | None = "family", progress: bool | None = DEFAULTS["progress"],
+        intervals: bool = True, families=None, top: int = 2, simulator: Simulator | None = None) -> FitResult:
     """Fit parameters of `model` so its texture statistics match `target`'s.
 
     Args:
         target: a `Target` (see `load_target`), an image path, or a 2D array at lattice
             resolution (normalised by its quantiles like a photo).
-        model: "turing", "bard", "gray-scott", "reinforcement", a model, or an `Experiment`
-            (growing and multi-phase runs; see `Simulator` for parameter names).
-        fit: names of the parameters to fit (e.g. ratio, scale, upper_a, lower_b).
+        model: "auto" (screen every family, fit the best `top` in full, rank them; see
+            `fitting._auto`), a family name ("turing", "bard", "gray-scott",
+            "reinforcement", "leopard"; `fitting.FAMILIES`), another model name, a model,
+            or an `Experiment` (growing and multi-phase runs; see `Simulator` for names).
+        fit: names of the parameters to fit; None fits the family's defaults (with "auto",
+            names given apply to each family that has them).
         fixed: parameters held at given values; bounds: {name: (low, high)} overriding the
-            defaults of `fitting.DEFAULT_BOUNDS`.
+            family's (or `fitting.DEFAULT_BOUNDS`).
         shape: simulated lattice (rows, cols); steps / window: steps per simulation and how
-            many of the last are differentiated.
-        seeds: simulations averaged per evaluation (vmapped); seed: the fit's random seed
-            (seeds, design).
+            many of the last are differentiated (None: the family's).
+        seeds: simulations averaged per evaluation (vmapped); seed: the fit's random seed.
         design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
-            n_design points (default 12 per fitted parameter), then `rounds` Latin hypercubes of n_design points in boxes
-            (halving each round) around the best `keep`, which then start local searches.
+            n_design points (default 12 per fitted parameter), then `rounds` Latin hypercubes
+            in boxes (halving each round) around the best `keep`, which start local searches.
         method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
             iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
-        stats: which statistics and how they are weighted.
-        length_scale: a fitted parameter that multiplies every diffusion rate (Turing's
-            `scale`); the global stage moves each design point along it to match the target's
-            dominant wavelength (None to disable).
-        progress: a progress bar over the evaluations.
+        stats: which statistics and how they are weighted (default `StatsConfig()`: pigment maps).
+        length_scale: the fitted parameter that moves the wavelength ("family": the family's
+            own, e.g. Turing's `scale`); the global stage moves each design point along it
+            to the target's dominant wavelength (None to disable).
+        progress: a progress bar (None: on in terminals and notebooks).
+        intervals: compute the Laplace credible intervals (`fitting.laplace_intervals`).
+        families, top: for "auto", the families screened (default all) and how many are
+            fitted in full.
 
     Returns:
         `FitResult` (see its docstring); `result.save_json(path)`, `result.preview(path)`.
     """
-    n_fit = len(fit.split(",")) if isinstance(fit, str) else len(fit)
-    n_design = 12 * max(n_fit, 1) if n_design is None else n_design
+    stats = StatsConfig() if stats is None else stats
+    progress = progress_default() if progress is None else bool(progress)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
+    if not isinstance(target, Target):  # a path, or an array already at lattice resolution
+        target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
+    options = dict(fixed=fixed, bounds=bounds, shape=shape, steps=steps, window=window, seeds=seeds, seed=seed,
+                   design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
+                   fallback=fallback, stats=stats, boundary=boundary, species=species, batch_size=batch_size,
+                   noise_seeds=noise_seeds, learning_rate=learning_rate, length_scale=length_scale,
+                   intervals=intervals)
+    if isinstance(model, str) and model == "auto":
+        from ._auto import fit_auto
+
+        return fit_auto(target, _names(fit), families=families, top=top, progress=progress, **options)
+    return fit_one(target, model, _names(fit), progress=progress, simulator=simulator, **options)
+
+
+def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds, seed, design, n_design, rounds,
+            keep, method, max_steps, fallback, stats, boundary, species, batch_size, noise_seeds, learning_rate,
+            length_scale, intervals, progress, simulator=None, stage_prefix="", screen_only=False) -> FitResult:
+    """One family's (or model's) fit; `fit` without "auto". `target` is a `Target`."""
+    fam, template, names, fam_bounds = _resolve(model, names, shape)
+    n_design = 12 * max(len(names), 1) if n_design is None else n_design
     for name, value, low in (("seeds", seeds, 1), ("n_design", n_design, 1), ("keep", keep, 1),
                              ("max_steps", max_steps, 0), ("batch_size", batch_size, 1)):
         if int(value) < low:
             raise ValueError(f"{name} must be an integer >= {low} (got {value!r})")
     t_start = time.perf_counter()
     timings = {}
-    if not isinstance(target, Target):  # a path, or an array already at lattice resolution
-        target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
-    template = _as_template(model, shape)
-    sim = simulator or Simulator(template, shape=tuple(shape), steps=int(steps), window=int(window),
-                                 species=species, boundary=boundary, fixed=fixed_tuple(fixed))
-    names = list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
+    steps = int(steps if steps is not None else fam.steps if fam is not None else 8000)
+    window = int(window if window is not None else min(fam.window if fam is not None else 1000, steps))
+    dt_cap = fam.dt_cap if fam is not None else 0.01
+    sim = simulator or Simulator(template, shape=tuple(shape), steps=steps, window=window, species=species,
+                                 boundary=boundary, fixed=fixed_tuple(fixed), dt_cap=dt_cap)
     sim.check_names(names + [k for k, _ in sim.fixed])
-    space = ParamSpace.build(names, bounds)
+    all_bounds = {n: fam_bounds[n] for n in names if n in fam_bounds}
+    all_bounds.update({n: b for n, b in (bounds or {}).items() if n in names})
+    space = ParamSpace.build(names, all_bounds)
+    if length_scale == "family":
+        length_scale = fam.length if fam is not None else "scale"
+    power = fam.length_power if fam is not None else 0.5
     rates = [i for i, n in enumerate(names) if n.rpartition(":")[2] == "growth_rate"]
     if rates:  # fitted growth rates: compare the window every point reaches, check the room
         sim = dataclasses.replace(sim, compare=sim.final_shape({names[i]: space.low[i] for i in rates}))
@@ -235,26 +360,32 @@ def fit(target, model="turing", fit=("ratio", "scale"), *, fixed=None, bounds=No
     tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(target.field, jnp.float32), stats))
     keys = jax.random.split(jax.random.key(seed + 1), seeds)
 
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    from ._progress import Progress
 
-        bar = tqdm(desc="fit", unit="eval")
+    label = stage_prefix + (fam.name if fam is not None else "fit")
+    total = n_design * (1 + int(rounds)) * (2 if length_scale in names else 1) + keep * max(max_steps, 1) * 2
+    bar = Progress(label, total) if progress else None
     rec = _Recorder(bar)
     _RECORDERS.append(rec)
     try:
-        return _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, seed=seed,
-                    design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
-                    fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
-                    length_scale=length_scale, seeds=seeds)
+        result = _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, seed=seed,
+                      design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
+                      fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
+                      length_scale=length_scale, length_power=power, seeds=seeds, intervals=intervals,
+                      screen_only=screen_only)
     finally:
         _RECORDERS.remove(rec)
         if bar is not None:
             bar.close()
+    result.family = fam.name if fam is not None else (model if isinstance(model, str) else type(template).__name__)
+    result.palette = None if screen_only else target.palette()
+    result.simulator = sim
+    return result
 
 
 def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, *, seed, design, n_design, rounds,
-         keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, seeds):
+         keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, length_power,
+         seeds, intervals, screen_only=False):
     # ---- global stage: a coarse design, then `rounds` finer designs around the best ------
     t0 = time.perf_counter()
 
@@ -271,12 +402,13 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     def evaluate(unit_points):
         """Losses at the points; with a length-scale parameter, each point is first moved
-        along it to the value whose dominant wavelength matches the target's (the pattern's
-        size grows as the square root of a length scale of the diffusion rates)."""
+        along it to the value whose dominant wavelength matches the target's (wavelength ~
+        length ** length_power, the family's declaration)."""
         thetas = np.asarray(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
         vals, lams = run_batch(thetas)
         if length is not None:
-            factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** 2
+            factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** (
+                1.0 / length_power)
             moved = thetas.copy()
             moved[:, length] = np.clip(np.nan_to_num(thetas[:, length] * factor, nan=thetas[:, length]),
                                        space.low[length], space.high[length])
@@ -309,6 +441,14 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     design_rows = [{**{n: float(thetas[i, j]) for j, n in enumerate(names)}, "loss": float(losses[i])}
                    for i in order]
     timings["design"] = time.perf_counter() - t0
+    if screen_only:  # `auto`'s screening: the design's best, scored with the config's noise scales
+        best = order[0]
+        params = {n: float(thetas[best, j]) for j, n in enumerate(names)}
+        timings["total"] = time.perf_counter() - t_start
+        return FitResult(params=params, model=sim.build(params), loss=float(losses[best]), noise_floor=float("nan"),
+                         history=[{k: v for k, v in row.items() if k != "z"} for row in rec.rows], timings=timings,
+                         stats={}, report={}, design=design_rows, fields={"target": np.asarray(target.field)},
+                         config={"fit": names, "screen": True}, target=target.describe(), score=float(losses[best]))
 
     # ---- noise at the best design point -------------------------------------------------
     t0 = time.perf_counter()
@@ -343,7 +483,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
     fit_stats = _mean_stats_at(sim, space, stats, theta_best, keys)
-    floor_keys = jax.random.split(jax.random.key(seed + 3), 4)
+    floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
     singles = _seed_stats(sim, space, stats, theta_best, floor_keys)
     floor = float(np.mean([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats, noise))
                            for i in range(len(floor_keys))]))
@@ -351,7 +491,16 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     from ._report import region_stats
 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
+    score = float(distance(fit_stats, tstats, stats))
     timings["report"] = time.perf_counter() - t0
+    ivals, undetermined = {}, []
+    if intervals:
+        from ._uncertainty import interval_report
+
+        t0 = time.perf_counter()
+        rec.stage = "intervals"
+        ivals, undetermined = interval_report(sim, space, stats, theta_best, keys, tstats, noise)
+        timings["intervals"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]
     config = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
@@ -365,7 +514,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         params=params, model=sim.build(params), loss=float(best_loss), noise_floor=floor, history=history,
         timings=timings, stats={"target": _tolist(tstats), "fit": _tolist(fit_stats), "noise": _tolist(noise)},
         report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample},
-        config=config, target=target.describe(),
+        config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
     )
 
 

@@ -33,6 +33,33 @@ def region_stats(field, thresh=None) -> dict:
     }
 
 
+def unit(x) -> np.ndarray:
+    """A field mapped to [0, 1] by its 2% and 98% quantiles (as the statistics see it)."""
+    x = np.asarray(x, float)
+    lo, hi = np.quantile(x, [0.02, 0.98])
+    return np.clip((x - lo) / max(hi - lo, 1e-9), 0, 1)
+
+
+def describe(result) -> str:
+    """The fit in words: family, parameters with intervals, undetermined ones, distance to the floor."""
+    parts = [f"family {result.family or '?'}:"]
+    for name, value in result.params.items():
+        text = f"{name} = {value:.3g}"
+        if name in result.intervals:
+            lo, hi = result.intervals[name]
+            if np.isfinite(lo) and np.isfinite(hi):
+                text += f" (95% interval {lo:.3g} to {hi:.3g})"
+        parts.append(text + ("," if name != list(result.params)[-1] else ";"))
+    if result.undetermined:
+        parts.append(f"not determined by the target: {', '.join(result.undetermined)};")
+    else:
+        parts.append("every fitted parameter is determined;")
+    if result.noise_floor > 0:
+        parts.append(f"loss {result.loss:.3g} = {result.loss / result.noise_floor:.1f}x the noise floor "
+                     f"({result.noise_floor:.3g}).")
+    return " ".join(parts)
+
+
 def _gray(x, size):
     x = np.asarray(x, float)
     lo, hi = np.quantile(x, [0.02, 0.98])
@@ -75,21 +102,35 @@ def loss_curve(history, size=(256, 256)) -> Image.Image:
 
 
 def preview(result, scale: int | None = None) -> Image.Image:
-    """target | fitted simulation | loss curve, with the fitted parameters underneath."""
+    """target | fitted simulation | loss curve | the fit in the animal's colours, with the
+    fitted parameters, family, resolution and intervals underneath."""
+    from ._palette import GREY, colourise
+
     tf, ff = result.fields["target"], result.fields["fit"]
     side = 256
     tsize = (side, int(side * tf.shape[0] / tf.shape[1]))
     fsize = (side, int(side * ff.shape[0] / ff.shape[1]))
-    panels = [_gray(tf, tsize), _gray(ff, fsize), loss_curve(result.history, (side, side))]
-    height = max(p.height for p in panels) + 46
-    canvas = Image.new("RGB", (3 * side + 16, height), "white")
+    coat = Image.fromarray(colourise(unit(ff), result.palette or GREY), "RGB").resize(fsize, Image.BICUBIC)
+    panels = [_gray(tf, tsize), _gray(ff, fsize), loss_curve(result.history, (side, side)), coat]
+    height = max(p.height for p in panels) + 72
+    canvas = Image.new("RGB", (4 * side + 20, height), "white")
     draw = ImageDraw.Draw(canvas)
     font = ImageFont.load_default()
-    for k, (p, title) in enumerate(zip(panels, ["target", "fitted simulation", "loss"])):
+    for k, (p, title) in enumerate(zip(panels, ["target", f"fitted simulation ({result.family})", "loss",
+                                                "fit in the photo's colours"])):
         canvas.paste(p, (4 + k * (side + 4), 16))
         draw.text((4 + k * (side + 4), 2), title, fill="black", font=font)
-    text = ", ".join(f"{k} = {v:.3g}" for k, v in result.params.items())
-    draw.text((4, height - 28), text, fill="black", font=font)
-    draw.text((4, height - 15), f"loss {result.loss:.3g} (noise floor {result.noise_floor:.3g}), "
+    text = ", ".join(f"{k} = {v:.3g}" + (f" [{result.intervals[k][0]:.3g}, {result.intervals[k][1]:.3g}]"
+                                         if k in result.intervals else "") for k, v in result.params.items())
+    draw.text((4, height - 54), text, fill="black", font=font)
+    und = ", ".join(result.undetermined) if result.undetermined else "none"
+    cp = result.target.get("cell_pixels")
+    draw.text((4, height - 41), f"not determined: {und}; {cp:.2f} photo pixels per cell, lattice "
+                                f"{tf.shape[1]}x{tf.shape[0]}" if cp else f"not determined: {und}", fill="black",
+              font=font)
+    draw.text((4, height - 28), f"loss {result.loss:.3g} (noise floor {result.noise_floor:.3g}), "
                                 f"{result.timings.get('total', 0):.0f} s", fill="black", font=font)
+    if result.ranking:
+        rank = "; ".join(f"{r['family']} {r['penalised']:.3g}" for r in result.ranking[:5])
+        draw.text((4, height - 15), f"ranking (penalised loss): {rank}", fill="black", font=font)
     return canvas

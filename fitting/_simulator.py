@@ -29,18 +29,32 @@ import numpy as np
 import morphojax as mj
 
 
+# the diffusion rates `diffusion_scale` multiplies (Turing's diffusion is its `scale`)
+DIFFUSION_NAMES = ("da", "db", "du", "dv", "diffusion")
+
+
 def _apply(model: mj.AbstractModel, params: dict) -> mj.AbstractModel:
-    """Set the parameters this model has (composites: in every part that has them)."""
+    """Set the parameters this model has (composites: in every part that has them).
+
+    `diffusion_scale` multiplies every diffusion rate of the template (those in
+    DIFFUSION_NAMES not set explicitly): wavelengths scale as its square root."""
     if isinstance(model, mj.Composite):
         parts = tuple(_apply(p, params) for p in model.parts)
         return mj.Composite(parts, species=model.species)
-    known = {k: v for k, v in params.items() if k in model.parameters()}
+    own = model.parameters()
+    known = {k: v for k, v in params.items() if k in own}
+    if "diffusion_scale" in params:
+        for k in DIFFUSION_NAMES:
+            if k in own and k not in known:
+                known[k] = own[k] * params["diffusion_scale"]
     return model.replace(**known) if known else model
 
 
 def _has(model: mj.AbstractModel, name: str) -> bool:
     if isinstance(model, mj.Composite):
         return any(_has(p, name) for p in model.parts)
+    if name == "diffusion_scale":
+        return any(k in model.parameters() for k in DIFFUSION_NAMES)
     return name in model.parameters()
 
 
@@ -90,13 +104,16 @@ class Simulator(eqx.Module):
     def parameter_names(self) -> list[str]:
         """Names that can be fitted or fixed (for experiments: the union over phases, and growth_rate)."""
         if isinstance(self.template, mj.AbstractModel):
-            return list(self.template.parameters())
+            return list(self.template.parameters()) + (
+                ["diffusion_scale"] if _has(self.template, "diffusion_scale") else [])
         names = []
         for ph in self.template.phases:
             for n in ph.model.parameters():
                 base = n.split(".", 1)[-1] if isinstance(ph.model, mj.Composite) else n
                 if base not in names:
                     names.append(base)
+        if any(_has(ph.model, "diffusion_scale") for ph in self.template.phases):
+            names.append("diffusion_scale")
         return names + (["growth_rate"] if any(ph.growth is not None for ph in self.template.phases) else [])
 
     def check_names(self, names) -> None:
@@ -147,7 +164,7 @@ class Simulator(eqx.Module):
         """One simulated field (rows, cols) for `params` and `key`; NaN never comes out."""
         if isinstance(self.template, mj.AbstractModel):
             model = self.build(params)
-            state = mj.initial_state(self.template, jax.random.fold_in(key, 0), self.shape)
+            state = _start(self.template, model, jax.random.fold_in(key, 0), self.shape)
             dt = self.time_step(model)
             opts = dict(boundary=self.boundary, stencil=self.stencil, check_dt=False, throw=False)
             head = self.steps - self.window
@@ -208,6 +225,28 @@ class Simulator(eqx.Module):
                                "window": self.window, "species": self.species, "boundary": self.boundary,
                                "stencil": self.stencil, "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
                                "fixed": dict(self.fixed)})
+
+
+def _start(template, model, key, shape):
+    """The model's customary random start; reinforcement's, uniform in [t - w, t + w), from the
+    built (possibly traced) threshold t and width w."""
+    if isinstance(template, mj.Reinforcement):
+        u = mj.random_state(key, shape, (0.0, 1.0), names=("c",)).fields[0]
+        t, w = model.threshold, model.width
+        return mj.State.from_arrays([t - w + 2.0 * w * u], names=("c",))
+    if isinstance(template, mj.GrayScott):
+        # Pearson's perturbation (u, v) = (0.5, 0.25) in scattered 4x4 blocks (about one per
+        # hundred cells) instead of one central square, so the pattern fills any lattice
+        # in the same simulated time and seeds differ in more than noise
+        rows, cols = shape
+        k1, k2 = jax.random.split(key)
+        blocks = jax.random.uniform(k1, ((rows + 3) // 4, (cols + 3) // 4)) < 0.15
+        mask = jnp.kron(blocks, jnp.ones((4, 4)))[:rows, :cols]
+        noise = mj.random_state(k2, shape, (-0.02, 0.02), (-0.02, 0.02)).fields
+        u = jnp.clip(jnp.where(mask, 0.5, 1.0) + noise[0], 0.0, 1.0)
+        v = jnp.clip(jnp.where(mask, 0.25, 0.0) + noise[1], 0.0, 1.0)
+        return mj.State.from_arrays([u, v], names=("u", "v"))
+    return mj.initial_state(template, key, shape)
 
 
 def fixed_tuple(fixed: dict | None) -> tuple:

@@ -43,7 +43,7 @@ class StatsConfig:
     # compare pigment maps: each field is softly thresholded at its own Otsu threshold
     # (sigmoid of width `softness`) before the statistics, so a photo's shading and fur
     # texture and a model's concentration profile do not decide the fit
-    binarise: bool = False
+    binarise: bool = True
     orientation: bool = False
     # Typical seed-to-seed standard deviation of each group (measured on 64x64 Turing
     # patterns): residuals are divided by these, so the distance is in units of noise.

@@ -2,8 +2,12 @@
 
 A `Target` is the photo's intensity at *lattice* resolution: one value per simulated cell.
 The resolution is `cell_pixels` photo pixels per cell, given by the user or estimated so
-that the photo's dominant wavelength spans `wavelength_cells` cells (the scale at which the
-simulation is cheap and well resolved).
+that the photo's dominant wavelength spans `wavelength_cells` cells (default 10, in the 8-12
+where the simulation is well resolved and still cheap). The estimate removes shading first
+(a wide Gaussian high-pass, sigma = 1/8 of the crop) and measures the spectrum of the
+resulting pigment map (thresholded at Otsu's level), so illumination gradients and fur
+texture do not set the scale. A crop holding fewer than MIN_WAVELENGTHS wavelengths is
+refused; fewer than WARN_WAVELENGTHS gives a warning.
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ import morphojax as mj
 CHANNELS = ("luminance", "red", "green", "blue", "alpha", "saturation", "value")
 MIN_PIXELS = 16  # a crop smaller than this cannot show a texture
 MIN_CELLS = 16  # nor can a lattice smaller than this
+MIN_WAVELENGTHS = 2.0  # fewer wavelengths across the crop cannot be measured
+WARN_WAVELENGTHS = 4.0  # fewer make the statistics noisy
 
 
 @dataclasses.dataclass
@@ -40,6 +46,16 @@ class Target:
     channel: str = "luminance"
     invert: bool = False
     quantiles: tuple = (0.02, 0.98)
+    rgb: np.ndarray | None = None  # the crop's colours (at most 200 px a side), for the palette
+    values: np.ndarray | None = None  # the normalised channel at the resolution of `rgb`
+
+    def palette(self, k: int = 3) -> list | None:
+        """The crop's main colours as stops ordered along the target's values (`photo_palette`), or None without colours."""
+        if self.rgb is None:
+            return None
+        from ._palette import photo_palette
+
+        return photo_palette(self.rgb, self.values, k=k)
 
     @property
     def shape(self):
@@ -76,8 +92,11 @@ def normalise(x: np.ndarray, quantiles=(0.02, 0.98)) -> np.ndarray:
     return np.clip((x - lo) / (hi - lo), 0.0, 1.0)
 
 
-def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 8.0) -> float:
-    """Photo pixels per lattice cell such that the dominant wavelength spans `wavelength_cells`."""
+def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 10.0) -> float:
+    """Photo pixels per lattice cell such that the dominant wavelength spans `wavelength_cells`.
+
+    Raises a ValueError when the crop holds fewer than MIN_WAVELENGTHS wavelengths and warns
+    below WARN_WAVELENGTHS."""
     x = pixels
     factor = 1
     while max(x.shape) > 512:  # the spectrum's peak needs no more resolution than this
@@ -88,16 +107,31 @@ def estimate_cell_pixels(pixels: np.ndarray, wavelength_cells: float = 8.0) -> f
 
     # remove shading and illumination (scales much larger than the pattern), taper the edges
     x = x - gaussian(x, sigma=min(x.shape) / 8.0, mode="reflect", preserve_range=True)
+    from skimage.filters import threshold_otsu
+
+    if np.ptp(x) > 0:  # the pigment map: the pattern's phases, not their shading
+        x = (x > threshold_otsu(x)).astype(np.float64)
+        x = x - x.mean()
     window = np.outer(np.hanning(x.shape[0]), np.hanning(x.shape[1]))
     freq, power = mj.radial_power_spectrum(x * window)
-    # look for the peak between 4 periods per crop and 4 pixels per period
-    band = (freq >= 4.0 / min(x.shape)) & (freq <= 0.25)
+    # look for the peak between one period per crop and 4 pixels per period
+    band = (freq >= 1.0 / min(x.shape)) & (freq <= 0.25)
     if not band.any() or not (power[band] > 0).any():
         raise ValueError("could not measure a dominant wavelength in the target; give cell_pixels explicitly")
     k = int(np.flatnonzero(band)[np.argmax(power[band])])
     lo, hi = max(1, k - 1), min(len(power), k + 2)
     f_peak = float((freq[lo:hi] * power[lo:hi]).sum() / power[lo:hi].sum())
     lam = factor / f_peak
+    across = min(pixels.shape) / lam
+    if across < MIN_WAVELENGTHS:
+        raise ValueError(f"the crop holds {across:.1f} pattern wavelengths ({lam:.0f} px each) across its "
+                         f"{min(pixels.shape)} px; at least {MIN_WAVELENGTHS:g} are needed: crop a larger region "
+                         "or give cell_pixels")
+    if across < WARN_WAVELENGTHS:
+        import warnings
+
+        warnings.warn(f"the crop holds only {across:.1f} pattern wavelengths ({lam:.0f} px each); the texture "
+                      f"statistics will be noisy (at least {WARN_WAVELENGTHS:g} recommended)", stacklevel=3)
     return float(lam / wavelength_cells)
 
 
@@ -117,7 +151,7 @@ def resample(pixels: np.ndarray, cell_pixels: float) -> np.ndarray:
 
 
 def load_target(source, *, crop=None, channel: str = "luminance", invert: bool = False,
-                quantiles=(0.02, 0.98), cell_pixels: float | None = None, wavelength_cells: float = 8.0) -> Target:
+                quantiles=(0.02, 0.98), cell_pixels: float | None = None, wavelength_cells: float = 10.0) -> Target:
     """Load a photo (path or array) as a fitting target.
 
     Args:
@@ -148,7 +182,7 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
         arr = np.asarray(source, np.float64)
         if arr.ndim != 2:
             raise ValueError(f"an array target must be 2D (got shape {arr.shape})")
-        im, name = None, "<array>"
+        im, name, rgb = None, "<array>", None
     if im is not None:
         width, height = im.size
         if crop is not None:
@@ -160,6 +194,9 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
                 )
             im = im.crop((x0, y0, x1, y1))
         pixels = _channel(im, channel)
+        small = im.convert("RGB")
+        small.thumbnail((200, 200))
+        rgb = np.asarray(small, np.float64) / 255.0
     else:
         pixels = arr
         if crop is not None:
@@ -180,6 +217,10 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
     elif not (np.isfinite(cell_pixels) and cell_pixels > 0):
         raise ValueError(f"cell_pixels must be a positive number (got {cell_pixels!r})")
     field = resample(pixels, float(cell_pixels))
-    return Target(field=field, pixels=pixels, cell_pixels=float(cell_pixels), source=name,
+    values = None
+    if rgb is not None:
+        values = np.asarray(Image.fromarray(pixels.astype(np.float32), mode="F").resize(
+            (rgb.shape[1], rgb.shape[0]), Image.BOX), np.float64)
+    return Target(field=field, pixels=pixels, cell_pixels=float(cell_pixels), source=name, rgb=rgb, values=values,
                   crop=tuple(int(v) for v in crop) if crop is not None else None, channel=channel,
                   invert=bool(invert), quantiles=tuple(quantiles))

@@ -1,0 +1,87 @@
+"""`model="auto"`: screen every family cheaply, fit the best few in full, rank them.
+
+Screening runs each family's global design only (no local search, no intervals) on a lattice
+of half the rows and columns (at least 24; wavelengths are in cells, so the statistics stay
+comparable), with two seeds. The `top` families with the lowest penalised screening loss are
+then fitted in full and the best of those is returned.
+
+Ranking: a penalised synthetic likelihood. Every family's `score` is the distance between
+the target's and the fit's statistics with the config's fixed per-group noise scales (the
+same yardstick for every family; each family's own measured noise would make a noisier
+family look better). The distance sums about one unit of squared noise per statistics group,
+so it plays the part of -2 log L; the penalty is BIC's k log(n) with k the number of fitted
+parameters and n the number of statistics groups (the number of independent statistics the
+loss counts): penalised = score + k log(n). It matters only between families whose fits are
+about equally close, and then prefers the one with fewer parameters.
+
+Families have different model structures (species, phases, growth), so they are fitted one
+after the other; within a family the design points and seeds are vmapped batches, and the
+compiled programs are cached per family and lattice across fits.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._families import FAMILIES
+
+
+def penalised(score: float, k: int, cfg) -> float:
+    """score + k log(number of statistics groups) (see the module docstring)."""
+    return float(score) + k * math.log(len(cfg.groups()))
+
+
+def _names_for(fam, names):
+    if names is None:
+        return list(fam.fit)
+    known = fam.parameters()
+    mine = [n for n in names if n.rpartition(":")[2] in known]
+    return mine or list(fam.fit)
+
+
+def fit_auto(target, names, *, families=None, top=2, progress, **options):
+    """Screen, fit the best `top` in full, rank; see the module docstring."""
+    from ._fit import fit_one
+
+    chosen = list(families or [f for f, fam in FAMILIES.items() if not fam.oriented])
+    for f in chosen:
+        if f not in FAMILIES:
+            raise ValueError(f"unknown model family {f!r} in families; allowed: {', '.join(FAMILIES)}")
+    if int(top) < 1:
+        raise ValueError(f"top must be an integer >= 1 (got {top!r})")
+    cfg = options["stats"]
+    rows, cols = options["shape"]
+    screen_shape = (max(24, rows // 2), max(24, cols // 2))
+    fixed = options.get("fixed") or {}
+    screened = []
+    for f in chosen:
+        fam = FAMILIES[f]
+        mine = _names_for(fam, names)
+        opts = {**options, "shape": screen_shape, "seeds": 2, "rounds": 0, "keep": 1, "max_steps": 0,
+                "intervals": False, "n_design": 6 * len(mine),
+                "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
+        res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)
+        screened.append({"family": f, "score": res.score, "penalised": penalised(res.score, len(mine), cfg),
+                         "params": res.params, "k": len(mine), "stage": "screen", "seconds": res.timings["total"]})
+    screened.sort(key=lambda r: r["penalised"] if np.isfinite(r["penalised"]) else math.inf)
+    full = []
+    for row in screened[: int(top)]:
+        fam = FAMILIES[row["family"]]
+        mine = _names_for(fam, names)
+        opts = {**options, "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
+        res = fit_one(target, row["family"], mine, progress=progress, **opts)
+        full.append((penalised(res.score, len(mine), cfg), res))
+    full.sort(key=lambda item: item[0] if np.isfinite(item[0]) else math.inf)
+    ranking = [{"family": r.family, "loss": r.score, "penalised": p, "k": len(r.params), "params": r.params,
+                "fit_loss": r.loss, "stage": "full", "seconds": r.timings["total"]} for p, r in full]
+    done = {r["family"] for r in ranking}
+    ranking += [{"family": r["family"], "loss": r["score"], "penalised": r["penalised"], "k": r["k"],
+                 "params": r["params"], "stage": "screen", "seconds": r["seconds"]}
+                for r in screened if r["family"] not in done]
+    best = full[0][1]
+    best.ranking = ranking
+    best.timings["auto_screen"] = float(sum(r["seconds"] for r in screened))
+    best.timings["auto_total"] = float(sum(r["seconds"] for r in screened) + sum(r.timings["total"] for _, r in full))
+    return best

@@ -1,0 +1,142 @@
+"""The model families a fit searches, declared in one place.
+
+A family says how to build its template on a lattice, which parameters it has, their
+default bounds, which it fits by default, the run it needs (steps, differentiated window,
+time-step cap) and how its length scale moves: `length` is the parameter that scales the
+pattern's wavelength as wavelength ~ length ** `length_power`, so the global design can move
+each point to the target's wavelength (`fitting._fit`).
+
+Length scales. In a reaction-diffusion model every wavelength scales as sqrt(D) when all
+diffusion rates D are multiplied by one factor (the dimensionless equations are unchanged
+with x -> x sqrt(factor)). Turing's `scale` multiplies its diffusion rates (leopard paper
+eqs. 3-4), so wavelength ~ scale ** 0.5; Bard and Gray-Scott have no such parameter, so
+their families fit `diffusion_scale`, a common factor on their template's diffusion rates
+(`fitting.Simulator`). The three-phase leopard experiment moves its wavelength through the
+definition phase's `scale`, which sets the spot spacing that later phases inherit.
+
+Oriented coats (zebra, tiger) need anisotropic diffusion with a polarity, which the library
+does not have yet: no family here has an orientation, and `StatsConfig(orientation=True)`
+stays optional until one does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import morphojax as mj
+
+
+@dataclasses.dataclass(frozen=True)
+class Family:
+    """One model family: its template, parameters and bounds, default fit, run and length scale.
+
+    make(shape) -> a model or Experiment whose compared field is `shape` (rows, cols);
+    bounds: {name: (low, high, geometric)}; fit: parameters fitted by default; length:
+    the parameter with wavelength ~ length ** length_power (None: none); steps, window,
+    dt_cap: the run (steps per simulation, differentiated steps, largest time step).
+    """
+
+    name: str
+    make: Callable
+    bounds: dict
+    fit: tuple
+    length: str | None = "scale"
+    length_power: float = 0.5
+    steps: int = 8000
+    window: int = 1000
+    dt_cap: float = 0.01
+    description: str = ""
+    oriented: bool = False
+
+    def parameters(self, shape=(32, 32)) -> list:
+        """Every parameter name the family's template has (fittable or fixable)."""
+        from ._simulator import Simulator
+
+        return Simulator(self.make(tuple(shape)), shape=tuple(shape), steps=2, window=1).parameter_names()
+
+    def default_bounds(self, name: str):
+        """(low, high, geometric) of a parameter of this family, or None when it has none."""
+        base = name.split(".")[-1]
+        return self.bounds.get(name, self.bounds.get(base))
+
+
+_TURING = {"ratio": (2.0, 50.0, True), "scale": (0.2, 8.0, True), "lower_a": (0.0, 5.0, False),
+           "lower_b": (0.0, 6.0, False), "upper_a": (3.5, 12.0, False), "upper_b": (2.0, 20.0, False)}
+
+
+def _leopard(shape):
+    """The leopard paper's three phases (Figs. 13-17) scaled to a small lattice: Turing spots
+    on a lattice of half the compared size (definition), then B copied to C, C reinforced
+    while the lattice grows by division to the full size (development), then B and C
+    reinforced while growth slows (maintenance). The compared species is C (the melanin's
+    ring-forming part)."""
+    rows, cols = (int(v) for v in shape)
+    r0, c0 = max(8, rows // 2), max(8, cols // 2)
+    # dt keeps every phase stable within the bounds below (largest diffusion ratio x scale = 48)
+    define_steps, grow_steps, keep_steps, dt = 8000, 1500, 500, 0.005
+    # expansions = rate x time (one row and column each), so the lattice reaches `shape`
+    rate = (rows - r0) / (grow_steps * dt)
+    cap = (rows + 4, cols + 4)
+    turing = mj.Turing(30.0, 0.5, lower=(0.0, 2.0))
+    reinforce = mj.Reinforcement(5.0, 5.0, 0.1)
+    return mj.Experiment(
+        name="leopard-small", initial=mj.Initial("paper", (r0, c0), capacity=cap),
+        phases=(mj.Phase(turing, steps=define_steps, dt=dt, name="definition"),
+                mj.Phase(mj.Composite((turing, reinforce)), steps=grow_steps, dt=dt, growth=mj.Growth(rate),
+                         add_species=(("c", "b"),), name="development", capacity=cap),
+                mj.Phase(mj.Composite((mj.Reinforcement(5.0, 5.0, 0.1), mj.Reinforcement(5.0, 5.0, 0.1))),
+                         steps=keep_steps, dt=dt, keep=("b", "c"), name="maintenance", capacity=cap)),
+        description="the leopard's definition, development and maintenance phases on a small lattice",
+        show="c1")
+
+
+FAMILIES = {
+    "turing": Family(
+        "turing", lambda shape: mj.Turing(), dict(_TURING), ("ratio", "scale", "lower_b"),
+        description="the leopard paper's two-species Turing model with limits (eqs. 3-4)"),
+    "bard": Family(
+        "bard", lambda shape: mj.preset("nudibranch").phases[0].model,
+        {"alpha": (12.0, 20.0, False), "beta": (10.0, 14.0, False), "sp": (1e-3, 1.0, True),
+         "diffusion_scale": (0.05, 3.0, True), "da": (1e-3, 10.0, True), "db": (1e-3, 10.0, True),
+         "upper_a": (2.0, 12.0, False), "lower_a": (0.0, 5.0, False), "lower_b": (0.0, 6.0, False)},
+        ("alpha", "beta", "diffusion_scale"), length="diffusion_scale", length_power=0.75, steps=3000, window=500,
+        dt_cap=1.0,
+        description="Bard's model (thesis listing), length through a common diffusion scale"),
+    "gray-scott": Family(
+        "gray-scott", lambda shape: mj.model_from_name("gray-scott"),
+        {"feed": (0.01, 0.08, False), "kill": (0.045, 0.07, False), "diffusion_scale": (0.1, 1.5, True),
+         "du": (0.02, 1.0, True), "dv": (0.01, 0.5, True)},
+        ("feed", "kill", "diffusion_scale"), length="diffusion_scale", steps=5000, window=500, dt_cap=1.0,
+        description="Gray-Scott (Pearson's scaling), length through a common diffusion scale"),
+    "reinforcement": Family(
+        "reinforcement", lambda shape: mj.Reinforcement(5.0, 5.0, 0.1),
+        {"threshold": (2.0, 8.0, False), "width": (1.0, 8.0, True), "diffusion": (0.01, 0.5, True)},
+        ("threshold", "width", "diffusion"), length="diffusion", steps=4000, window=500, dt_cap=0.05,
+        description="single-reagent reinforcement (leopard paper eq. 6)"),
+    "leopard": Family(
+        "leopard", _leopard,
+        {**_TURING, "definition:ratio": (10.0, 40.0, True), "definition:scale": (0.15, 1.2, True),
+         "threshold": (2.0, 8.0, False), "width": (1.0, 8.0, True), "diffusion": (0.02, 1.0, True),
+         "growth_rate": (1.0, 30.0, True)},
+        ("definition:ratio", "definition:scale", "threshold"), length="definition:scale",
+        steps=5000, window=300, description="the leopard's three-phase growing experiment (rosettes)"),
+}
+
+
+def family(name: str) -> Family:
+    """The family called `name` (a ValueError lists the known ones)."""
+    if name not in FAMILIES:
+        raise ValueError(f"unknown model family {name!r}; allowed: {', '.join(FAMILIES)} or 'auto'")
+    return FAMILIES[name]
+
+
+def family_of(model) -> Family | None:
+    """The family whose template has the same structure as `model` (a model object), if any."""
+    if isinstance(model, str):
+        return FAMILIES.get(model)
+    for fam in FAMILIES.values():
+        tmpl = fam.make((32, 32))
+        if type(tmpl) is type(model) and not isinstance(model, (mj.Experiment, mj.Composite)):
+            return fam
+    return None

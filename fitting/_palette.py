@@ -1,0 +1,105 @@
+"""The animal's colours: a palette from the photo's crop, and the fitted coat rendered in it.
+
+`photo_palette` clusters the crop's colours with k-means in CIELAB (scikit-image's rgb2lab,
+a perceptual space where Euclidean distance approximates colour difference), then orders the
+clusters by the mean target value (the normalised channel after `invert`, pigment high) of
+their pixels. The palette is a list of stops (position, (r, g, b)): position is that mean
+value, so the simulated pigment (also normalised to [0, 1], pigment high) is coloured by
+interpolating between the stops in CIELAB.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+
+def kmeans(x, k: int, seed: int = 0, iters: int = 50):
+    """Plain k-means (Lloyd's iterations, k-means++ start) of points x (n, d): (centres (k, d), labels (n,))."""
+    x = np.asarray(x, np.float64)
+    rng = np.random.default_rng(seed)
+    centres = [x[rng.integers(len(x))]]
+    for _ in range(1, k):
+        d2 = np.min([((x - c) ** 2).sum(1) for c in centres], axis=0)
+        p = d2 / d2.sum() if d2.sum() > 0 else None
+        centres.append(x[rng.choice(len(x), p=p)])
+    centres = np.array(centres)
+    labels = np.zeros(len(x), int)
+    for _ in range(iters):
+        labels = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
+        new = np.array([x[labels == j].mean(0) if (labels == j).any() else centres[j] for j in range(k)])
+        if np.allclose(new, centres):
+            break
+        centres = new
+    return centres, labels
+
+
+def photo_palette(rgb, values, k: int = 3, seed: int = 0, max_points: int = 20000) -> list:
+    """Stops [(position, (r, g, b))] of the crop's `k` main colours (rgb: (h, w, 3) in [0, 1]),
+    positioned at the mean of `values` (h, w: the target's normalised channel) over each cluster."""
+    from skimage.color import lab2rgb, rgb2lab
+
+    rgb = np.asarray(rgb, np.float64).reshape(-1, 3)
+    vals = np.asarray(values, np.float64).reshape(-1)
+    if len(rgb) != len(vals):
+        raise ValueError(f"rgb and values must have the same pixels (got {len(rgb)} and {len(vals)})")
+    idx = np.random.default_rng(seed).permutation(len(rgb))[:max_points]
+    lab = rgb2lab(rgb[idx][None])[0]
+    centres, labels = kmeans(lab, k, seed)
+    stops = []
+    for j in range(k):
+        if (labels == j).any():
+            colour = np.clip(lab2rgb(centres[j][None, None])[0, 0], 0, 1)
+            stops.append((float(vals[idx][labels == j].mean()), tuple(int(round(255 * c)) for c in colour)))
+    return sorted(stops)
+
+
+GREY = [(0.0, (0, 0, 0)), (1.0, (255, 255, 255))]
+
+
+def colourise(field, stops) -> np.ndarray:
+    """(h, w, 3) uint8: a field in [0, 1] coloured by interpolating the stops in CIELAB."""
+    from skimage.color import lab2rgb, rgb2lab
+
+    pos = np.array([s[0] for s in stops], np.float64)
+    lab = rgb2lab(np.array([s[1] for s in stops], np.float64)[None] / 255.0)[0]
+    if len(pos) == 1:
+        pos, lab = np.array([0.0, 1.0]), np.repeat(lab, 2, 0)
+    # stretch the stops to [0, 1] so the field's full range uses the whole palette
+    pos = (pos - pos.min()) / max(pos.max() - pos.min(), 1e-9)
+    f = np.clip(np.asarray(field, np.float64), 0, 1)
+    out = np.stack([np.interp(f, pos, lab[:, c]) for c in range(3)], -1)
+    return np.round(255 * np.clip(lab2rgb(out), 0, 1)).astype(np.uint8)
+
+
+def render_coat(result, size=512, palette="photo", seed: int = 0) -> Image.Image:
+    """The fitted coat at `size` pixels (see `FitResult.render`)."""
+    import dataclasses
+
+    import jax
+    import morphojax as mj
+
+    from ._report import unit
+
+    width, height = (size, size) if np.isscalar(size) else (int(size[0]), int(size[1]))
+    if palette == "photo":
+        stops = result.palette or GREY
+    elif palette == "grey":
+        stops = GREY
+    else:
+        stops = list(palette)
+    cell_pixels = max(float(result.target.get("cell_pixels", 1.0)), 1.0)
+    sim = result.simulator
+    field = np.asarray(result.fields["fit"])
+    if sim is not None and isinstance(sim.template, mj.AbstractModel) and sim.boundary == "wrap":
+        rows = min(max(int(np.ceil(height / cell_pixels)), field.shape[0]), 256)
+        cols = min(max(int(np.ceil(width / cell_pixels)), field.shape[1]), 256)
+        big = dataclasses.replace(sim, shape=(rows, cols))
+        field = np.asarray(jax.jit(lambda p, k: big.run(p, k))(result.params, jax.random.key(seed + 12345)))
+    elif field.shape[0] * cell_pixels < height or field.shape[1] * cell_pixels < width:
+        reps = (int(np.ceil(height / cell_pixels / field.shape[0])), int(np.ceil(width / cell_pixels / field.shape[1])))
+        field = np.tile(field, reps)
+    img = Image.fromarray(colourise(unit(field), stops), "RGB")
+    scale = max(width / img.width, height / img.height)
+    img = img.resize((int(np.ceil(img.width * scale)), int(np.ceil(img.height * scale))), Image.BICUBIC)
+    return img.crop((0, 0, width, height))
