@@ -113,11 +113,12 @@ for _surf in ("sphere", "torus"):
 def _turing_capsule(quick):
     mesh = Mesh.capsule(8.0, 20.0, 1.0) if quick else Mesh.capsule(14.0, 40.0, 1.0)
     model = Turing(ratio=12.0, scale=3.0, lower=(0.0, 3.0))  # Fig. 4, bottom row (Lb)
-    steps = 4000 if quick else 12500
+    dt = _dt(mesh, model, 0.008)
+    steps = int(round((30.0 if quick else 100.0) / dt))  # t = 100 as Fig. 4 (quick: 30)
     return Experiment(
         name="mesh-turing-capsule", initial=MeshInitial("uniform", (mesh.n_vertices,), params=(4.0, (4.0, 5.0)),
                                                         names=("a", "b")),
-        phases=(Phase(model, steps=steps, dt=_dt(mesh, model, 0.008), frames=4, name="static", domain=mesh),),
+        phases=(Phase(model, steps=steps, dt=dt, frames=4, name="static", domain=mesh),),
         description=f"leopard paper Fig. 4 (r = 12, s = 3, lower B = 3) on a capsule of {mesh.n_vertices} vertices: "
                     "A = 4, B ~ U[4, 5)",
         figure="leopard paper Fig. 4 on a body (section 8.2)", show="b", cmap="inferno")
