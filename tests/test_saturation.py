@@ -179,7 +179,7 @@ def test_fig7_8_stable_after_2100_iterations(seed):
     assert _moving(rules, final) < STABLE
 
 
-@pytest.mark.parametrize("name", ["thesis-fig7.4", "thesis-fig7.7", "thesis-fig7.8"])
+@pytest.mark.parametrize("name", ["thesis-fig7.4", "thesis-fig7.7", "thesis-fig7.8", "thesis-fig7.9"])
 def test_quick_presets_run_and_saturate(name):
     """The quick forms run; the reinforcement drives most cells to the limits 0 and L."""
     exp = mj.preset(name, quick=True)

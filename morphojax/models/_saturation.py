@@ -27,10 +27,13 @@ class ThesisReinforcement(AbstractReaction):
         dr/dt = s (r - a)(r - b)(r - c) + D lap(r)
 
     For s > 0 and a < b < c the middle root b attracts (the cubic is negative just above
-    it and positive just below) and a, c repel: the thesis's text wants the opposite (r
-    pushed to 0 below 0.5 and to 1 above), which s < 0 gives; the limits then stop r at 0
-    and 1. Defaults: Fig. 7.9's s = 0.35, a = 0.3, b = 0.5, c = 0.7, with Fig. 7.4's
-    diffusion rate 0.01 and limits [0, 1]. Units: r a concentration, s per unit time per
+    it and positive just below) and a, c repel, so a value below a falls to the lower
+    limit and one above c rises to the upper limit: with the thesis's saturation limits
+    [0, 1] there are three stable values, 0, b and 1, and most cells end at 0 or 1, as
+    the thesis's text intends (low values to 0, high ones to the limit). s < 0 makes a and
+    c attract instead (a bistable cubic between a and c that never reaches the limits).
+    Defaults: Fig. 7.9's s = 0.35, a = 0.3, b = 0.5, c = 0.7, with Fig. 7.4's diffusion
+    rate 0.01 and limits [0, 1]. Units: r a concentration, s per unit time per
     concentration^2, D in cells^2 per unit time (or, on the Moore stencil, the thesis's
     rate per neighbour per iteration).
     """

@@ -1,5 +1,6 @@
 """Presets of the thesis's chapter 7 (saturation): Wireworld (Fig. 7.2), Laplacian growth
-(Fig. 7.3) and the single-reagent reinforcement patterns (Figs. 7.4, 7.7, 7.8).
+(Fig. 7.3) and the single-reagent reinforcement patterns (Figs. 7.4, 7.7, 7.8, and eq. 7.1's
+Fig. 7.9).
 
 The reinforcement patterns run `RuleReinforcement` on the thesis's own stencil,
 `Lattice(stencil="moore", boundary="no-flux")` (its `sqr_grid` without `wrap`: the space
@@ -29,7 +30,7 @@ from .._experiment import Experiment, Initial, Phase
 from .._render import Gradient, colormap_table, montage, to_image
 from ..automata import WIREWORLD_COLOURS, LaplacianGrowth, Wireworld, wireworld_clock
 from ..domains import Lattice
-from ..models import RuleReinforcement
+from ..models import RuleReinforcement, ThesisReinforcement
 from ._automaton_outputs import save_cells_npz
 from ._registry import AutomatonPreset, ExperimentPreset, register, registered
 
@@ -94,6 +95,21 @@ def _fig7_8(quick):
         figure="thesis Fig. 7.8", show="r", cmap=WILD_DOG_CMAP)
 
 
+# ---- Fig. 7.9: eq. 7.1 -------------------------------------------------------------------------
+# The thesis uses Fig. 7.4's grid, start and diffusion rate and prints s, a, b, c; it gives no
+# iteration count, so Fig. 7.4's 2,700 are used.
+def _fig7_9(quick):
+    return Experiment(
+        name="thesis-fig7.9", initial=_start(quick),
+        phases=(Phase(ThesisReinforcement(), steps=600 if quick else 2700, dt=1.0, name="eq. 7.1",
+                      domain=THESIS_LATTICE, frames=4),),
+        description="thesis eq. 7.1 with Fig. 7.9's s 0.35, a 0.3, b 0.5, c 0.7 on Fig. 7.4's grid: limit 1, "
+                    "r ~ U[0, 1), Moore sum D 0.01, dt 1, 2700 iterations (the count is not printed)",
+        figure="thesis Fig. 7.9", show="r", cmap="gray")
+
+
+register(ExperimentPreset("thesis-fig7.9", "the thesis's cubic reaction (eq. 7.1) on one reagent with saturation at 1",
+                          "thesis Fig. 7.9", _fig7_9))
 register(ExperimentPreset("thesis-fig7.4", "one-reagent reinforcement with saturation at 1: a stable black-and-white "
                           "labyrinth (reconstructed: no appendix listing)", "thesis Fig. 7.4", _fig7_4))
 register(ExperimentPreset("thesis-fig7.7", "one-reagent reinforcement, Listing A.14: irregular Dalmatian spots",
