@@ -70,9 +70,10 @@ def test_accepted_changes_add_up_to_the_recomputed_energy(paper_run, blob):
 
 
 def test_each_mcs_depends_on_its_own_key_only(paper_run, blob):
-    model, _, trace = paper_run
-    first = model.run(blob, 5, jax.random.key(7))  # the first 5 MCS of the 20-MCS run
+    model, final, trace = paper_run
+    first = model.run(blob, 5, jax.random.key(7))  # the first 5 MCS of the 20-MCS run (the loop without trace)
     assert float(model.energy(first)) == trace[4]
+    np.testing.assert_array_equal(np.asarray(model.run(blob, MCS, jax.random.key(7)).ids), np.asarray(final.ids))
 
 
 def test_bookkeeping_on_a_torus_with_first_order_neighbours():

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._checks import as_float_array, check_choice, check_count, check_finite, check_range, is_concrete
 from ._state import PottsState
-from ._sweep import even_lattice, from_colour_major, run_mcs, to_colour_major, total_energy
+from ._sweep import even_lattice, from_colour_major, run_mcs, run_mcs_dynamic, to_colour_major, total_energy
 
 BOUNDARIES = ("fixed", "wrap")  # fixed: sites beyond the edge do not exist (CompuCell3D's default)
 
@@ -104,11 +104,12 @@ class Potts(eqx.Module):
         if self.boundary == "wrap" and (state.shape[0] % 2 or state.shape[1] % 2):
             raise ValueError(f"Potts.boundary 'wrap' needs an even number of rows and columns (got {state.shape}): "
                              "the four-colour sub-lattices must not touch across the seam")
-        planes, volumes, d_e, _ = _run(self, state.ids, state.volumes, state.types, key, int(mcs))
         rows, cols = state.shape
+        if not energy:  # one compiled loop for every number of MCS
+            planes, volumes = _run_dynamic(self, state.ids, state.volumes, state.types, key, jnp.int32(mcs))
+            return PottsState(from_colour_major(planes)[:rows, :cols], state.types, volumes)
+        planes, volumes, d_e, _ = _run(self, state.ids, state.volumes, state.types, key, int(mcs))
         out = PottsState(from_colour_major(planes)[:rows, :cols], state.types, volumes)
-        if not energy:
-            return out
         return out, self.energy(state) + jnp.cumsum(d_e)
 
     def _check_state(self, state):
@@ -126,3 +127,9 @@ _energy = eqx.filter_jit(total_energy)
 def _run(model, ids, volumes, types, key, mcs):
     planes = to_colour_major(even_lattice(ids, model.boundary))
     return run_mcs(model, planes, volumes, types, key, mcs)
+
+
+@eqx.filter_jit
+def _run_dynamic(model, ids, volumes, types, key, mcs):
+    planes = to_colour_major(even_lattice(ids, model.boundary))
+    return run_mcs_dynamic(model, planes, volumes, types, key, mcs)

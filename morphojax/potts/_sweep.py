@@ -146,26 +146,42 @@ def sub_sweep(model, planes, volumes, types, seed, colour):
     return planes, volumes, jnp.where(applied, d_h, 0.0).sum(), applied.sum()
 
 
-def run_mcs(model, planes, volumes, types, key, mcs: int):
-    """`mcs` Monte Carlo steps; returns (planes, volumes, energy change per MCS, accepted
-    attempts per MCS). MCS m draws its colour order and attempts from fold_in(key, m)."""
+def one_mcs(model, planes, volumes, types, key, m):
+    """Monte Carlo step `m`: the four colours in an order drawn from fold_in(key, m); returns
+    (planes, volumes, energy change, accepted attempts)."""
+    k_order, k_seed = jax.random.split(jax.random.fold_in(key, m))
+    order = jax.random.permutation(k_order, 4)
+    seed = jax.random.bits(k_seed, (2,), jnp.uint32)
 
-    def one_mcs(carry, m):
+    def one_colour(carry, colour):
         planes, volumes = carry
-        k_order, k_seed = jax.random.split(jax.random.fold_in(key, m))
-        order = jax.random.permutation(k_order, 4)
-        seed = jax.random.bits(k_seed, (2,), jnp.uint32)
+        planes, volumes, d_e, n = sub_sweep(model, planes, volumes, types, seed, colour)
+        return (planes, volumes), (d_e, n)
 
-        def one_colour(carry, colour):
-            planes, volumes = carry
-            planes, volumes, d_e, n = sub_sweep(model, planes, volumes, types, seed, colour)
-            return (planes, volumes), (d_e, n)
+    (planes, volumes), (d_e, n) = jax.lax.scan(one_colour, (planes, volumes), order)
+    return planes, volumes, d_e.sum(), n.sum()
 
-        (planes, volumes), (d_e, n) = jax.lax.scan(one_colour, (planes, volumes), order)
-        return (planes, volumes), (d_e.sum(), n.sum())
 
-    (planes, volumes), (d_e, n) = jax.lax.scan(one_mcs, (planes, volumes), jnp.arange(mcs))
+def run_mcs(model, planes, volumes, types, key, mcs: int):
+    """`mcs` (static) Monte Carlo steps; returns (planes, volumes, energy change per MCS,
+    accepted attempts per MCS)."""
+
+    def body(carry, m):
+        planes, volumes, d_e, n = one_mcs(model, *carry, types, key, m)
+        return (planes, volumes), (d_e, n)
+
+    (planes, volumes), (d_e, n) = jax.lax.scan(body, (planes, volumes), jnp.arange(mcs))
     return planes, volumes, d_e, n
+
+
+def run_mcs_dynamic(model, planes, volumes, types, key, mcs):
+    """`mcs` (a traced integer: one compiled loop for every count) Monte Carlo steps, the
+    same steps as `run_mcs`; returns (planes, volumes)."""
+
+    def body(m, carry):
+        return one_mcs(model, *carry, types, key, m)[:2]
+
+    return jax.lax.fori_loop(0, mcs, body, (planes, volumes))
 
 
 def total_energy(model, ids, types, volumes):
