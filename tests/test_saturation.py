@@ -37,7 +37,8 @@ def test_wireworld_listing_clock_period():
     np.testing.assert_array_equal(oracle.wireworld_step(cells0), mj.Wireworld().step(cells0))
     frames = np.asarray(mj.Wireworld().run(cells0, 60, save_every=1).frames)
     settled = frames[24:]
-    periods = [p for p in range(1, 25) if all(np.array_equal(settled[t], settled[t + p]) for t in range(len(settled) - p))]
+    periods = [p for p in range(1, 25)
+               if all(np.array_equal(settled[t], settled[t + p]) for t in range(len(settled) - p))]
     assert periods[0] == 12
     fires = np.flatnonzero(frames[:, 3, 13] == 1)
     assert len(fires) >= 4 and set(np.diff(fires)) == {12}

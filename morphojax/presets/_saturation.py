@@ -6,9 +6,12 @@ The reinforcement patterns run `RuleReinforcement` on the thesis's own stencil,
 `Lattice(stencil="moore", boundary="no-flux")` (its `sqr_grid` without `wrap`: the space
 outside the grid does not diffuse), with the listings' rates as printed, at dt = 1 (one
 step is one of its iterations), starting from `conc 0.5 dev 0.5`, i.e. r uniform in
-[0, 1). The thesis's seeds (`use seed 2`, 4, 5) drive its own generator, which is not
-reproduced: `seed` picks our own random start, so the pictures show the same kind of
-pattern, not the same one.
+[0, 1). At the grid's edge the thesis's cells simply have fewer neighbours; the lattice's
+no-flux ghost cells copy the edge cells instead, which also exchanges nothing with the
+outside but weights the links along the edge differently (a difference confined to the
+outermost ring of cells). The thesis's seeds (`use seed 2`, 4, 5) drive its own
+generator, which is not reproduced: `seed` picks our own random start, so the pictures
+show the same kind of pattern, not the same one.
 
 "Stable" (the thesis: Fig. 7.4 stable within 2,700 iterations, Fig. 7.8 after 2,100) is
 measured in tests/test_saturation.py as: over the next 100 iterations fewer than 2% of the
@@ -146,7 +149,8 @@ def _fig7_2(seed, quick, out, frames):
 
 # ---- Fig. 7.3 (Listing A.13): Laplacian growth ------------------------------------------------
 AGGREGATE_COLOURS = Gradient([(0.0, "#2040c0"), (1.0, "#d02020")])  # inactive blue, active red
-FIELD_COLOURS = Gradient([(0.0, "#2040c0"), (0.5, "#20c040"), (0.75, "#e0d020"), (1.0, "#d02020")])  # low blue, high red
+# the field from blue (lowest) to red (highest), as the thesis's figure
+FIELD_COLOURS = Gradient([(0.0, "#2040c0"), (0.5, "#20c040"), (0.75, "#e0d020"), (1.0, "#d02020")])
 
 
 @registered(AutomatonPreset, "thesis-fig7.3", "Laplacian growth (dielectric breakdown model), Listing A.13: an "
