@@ -37,6 +37,7 @@ DOMAINS = {  # name: constructor source (evaluated in the worker, after importin
                                                                "polarity=ANGLES)",
     "square moore, b anisotropic, angle per cell (no-flux)": "mj.Lattice('moore', 'no-flux', anisotropic='b', "
                                                               "polarity=ANGLES)",
+    "hex laplacian, b anisotropic, angle per cell (wrap)": "mj.HexLattice('wrap', anisotropic='b', polarity=ANGLES)",
 }
 MAPS = {"square nine-point, rate map, flux form (wrap)", "square nine-point, rate map, pointwise (wrap)"}
 

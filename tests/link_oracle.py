@@ -78,3 +78,45 @@ def operator_matrix(shape, rate, boundary="wrap", stencil="nine-point", angle=No
         e[k] = 1.0
         cols.append(link_term(e.reshape(shape), rate, boundary, stencil, angle).ravel())
     return np.stack(cols, axis=1)
+
+
+# ---- the hexagonal lattice (odd-r offset layout) ---------------------------------------------------
+def hex_neighbours(r, c):
+    """The six neighbours of (r, c) in the odd-r layout (odd rows shifted half a cell right)."""
+    same = [(r, c - 1), (r, c + 1)]
+    if r % 2 == 0:
+        return same + [(r - 1, c - 1), (r - 1, c), (r + 1, c - 1), (r + 1, c)]
+    return same + [(r - 1, c), (r - 1, c + 1), (r + 1, c), (r + 1, c + 1)]
+
+
+def _centre(r, c):
+    return c + 0.5 * (r % 2), r * math.sqrt(3.0) / 2.0
+
+
+def hex_link_term(u, rate, boundary="wrap", operator="laplacian", angle=None):
+    """sum_j w D_ij (u_j - u_i) on the hexagonal lattice (w = 2/3 for the Laplacian, 1 for
+    the neighbour sum); d from the cell centres (x along a row, y down the rows); wrap takes
+    indices modulo the size, no-flux drops the links that leave."""
+    u = np.asarray(u, float)
+    rows, cols = u.shape
+    rate = np.broadcast_to(np.asarray(rate, float), u.shape)
+    ang = None if angle is None else np.broadcast_to(np.asarray(angle, float), u.shape)
+    w = 2.0 / 3.0 if operator == "laplacian" else 1.0
+    out = np.zeros_like(u)
+    for r in range(rows):
+        for c in range(cols):
+            x, y = _centre(r, c)
+            for r2, c2 in hex_neighbours(r, c):
+                if boundary != "wrap" and not (0 <= r2 < rows and 0 <= c2 < cols):
+                    continue
+                x2, y2 = _centre(r2, c2)
+                dx, dy = x2 - x, y2 - y
+                rj, cj = r2 % rows, c2 % cols
+                scale_i = scale_j = 1.0
+                if ang is not None:
+                    for which, a in (("i", ang[r, c]), ("j", ang[rj, cj])):
+                        if not math.isnan(a):
+                            s = abs(dx * math.cos(a) + dy * math.sin(a)) / math.hypot(dx, dy)
+                            scale_i, scale_j = (s, scale_j) if which == "i" else (scale_i, s)
+                out[r, c] += w * _harmonic(rate[r, c] * scale_i, rate[rj, cj] * scale_j) * (u[rj, cj] - u[r, c])
+    return out

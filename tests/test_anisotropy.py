@@ -245,3 +245,47 @@ def test_thesis_fig5_13_orientation():
     for case in ("both", "isotropic"):
         assert 0.4 < ratio[case] < 2.5, ratio
         assert ratio["v"] > 2.5 * ratio[case] and ratio["u"] < ratio[case] / 2.5, ratio
+
+
+# ---- the hexagonal lattice ---------------------------------------------------------------------
+HEX_SHAPE = (8, 7)
+
+
+def _hex_inputs(seed=10):
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(3.0, 5.0, HEX_SHAPE)
+    rate = rng.uniform(0.0, 1.0, HEX_SHAPE)
+    rate[rng.random(HEX_SHAPE) < 0.1] = 0.0
+    angle = rng.uniform(-np.pi, np.pi, HEX_SHAPE)
+    angle[rng.random(HEX_SHAPE) < 0.2] = np.nan
+    return u, rate, angle
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES)
+@pytest.mark.parametrize("operator", ("laplacian", "sum"))
+def test_hex_link_operators_against_oracle(x64, boundary, operator):
+    u, rate, angle = _hex_inputs()
+    for domain, d, a in [(mj.HexLattice(boundary, operator), rate, None),
+                         (mj.HexLattice(boundary, operator, anisotropic="a", polarity=0.7), 0.6, 0.7),
+                         (mj.HexLattice(boundary, operator, anisotropic=(0,), polarity=angle), rate, angle)]:
+        got = np.asarray(_term(domain, u, d))
+        np.testing.assert_allclose(got, oracle.hex_link_term(u, d, boundary, operator, a), atol=1e-12)
+        assert abs(got.sum()) < 1e-12  # mass
+    plain = np.asarray(_term(mj.HexLattice(boundary, operator), u, 0.4))
+    np.testing.assert_array_equal(np.asarray(_term(mj.HexLattice(boundary, operator, anisotropic="a"), u, 0.4)), plain)
+    unpolarised = mj.HexLattice(boundary, operator, anisotropic="a", polarity=np.full(HEX_SHAPE, np.nan))
+    np.testing.assert_allclose(np.asarray(_term(unpolarised, u, 0.4)), plain, atol=1e-13)
+
+
+def test_hex_operator_is_symmetric_and_round_trips(x64):
+    _, rate, angle = _hex_inputs(seed=11)
+    domain = mj.HexLattice("no-flux", "sum", anisotropic="b", polarity=angle)
+    eye = jnp.eye(HEX_SHAPE[0] * HEX_SHAPE[1]).reshape((-1,) + HEX_SHAPE)
+    aniso_a = mj.HexLattice("no-flux", "sum", anisotropic="a", polarity=angle)
+    m = np.asarray(jax.vmap(lambda e: _term(aniso_a, e, rate))(eye)).reshape(eye.shape[0], -1).T
+    np.testing.assert_allclose(m, m.T, atol=1e-14)
+    assert np.abs(np.linalg.eigvalsh(m)).max() <= rate.max() * aniso_a.spectral_radius * (1 + 1e-12)
+    back = _serialise.domain_from_dict(json.loads(json.dumps(_serialise.domain_to_dict(domain))))
+    assert (back.boundary, back.operator, back.anisotropic, back.maps) == ("no-flux", "sum", (1,), "flux")
+    np.testing.assert_array_equal(np.asarray(back.polarity), np.asarray(domain.polarity))
+    np.testing.assert_array_equal(np.asarray(back.polarised), np.asarray(domain.polarised))

@@ -2,7 +2,9 @@
 
 `AbstractDomain` is the interface the stepping loop uses; `Lattice` is the square lattice
 (nine- or five-point stencil or the thesis's Moore sum, wrap or no-flux), `HexLattice` the
-hexagonal one (odd-r offset layout). New domains (anisotropic diffusion, triangle meshes,
+hexagonal one (odd-r offset layout); on both, diffusion maps diffuse in the conservative
+flux form and declared species anisotropically along a cell polarity (`_links`, thesis eqs.
+4.7-4.8). New domains (anisotropic diffusion, triangle meshes,
 point cells) subclass `AbstractDomain` here.
 """
 

@@ -24,8 +24,10 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from jax import Array
+
 from .._checks import check_choice
-from . import _stencils
+from . import _links, _stencils
 from ._base import AbstractDomain
 
 OPERATORS = ("laplacian", "sum")
@@ -55,6 +57,49 @@ def neighbour_sum(p, xp=jnp, links=None):
     same = mid[..., :-2] * has_left + mid[..., 2:] * has_right + up[..., 1:-1] * has_up + down[..., 1:-1] * has_down
     return same + xp.where(even, (up[..., :-2] * has_up + down[..., :-2] * has_down) * has_left,
                            (up[..., 2:] * has_up + down[..., 2:] * has_down) * has_right)
+
+
+def hex_direction_factors(angle, polarised=None):
+    """|d . p| / |d| for the three link axes of the odd-r layout (x along a row, y down the
+    rows): along the row (1, 0); "up-left/down-right" (1/2, sqrt(3)/2); "up-right/down-left"
+    (-1/2, sqrt(3)/2). `polarised` (1/0 or None = all) gives 1 to unpolarised cells."""
+    cx, sy = jnp.cos(angle), jnp.sin(angle)
+    h = math.sqrt(3.0) / 2.0
+    factors = (jnp.abs(cx), jnp.abs(0.5 * cx + h * sy), jnp.abs(h * sy - 0.5 * cx))
+    if polarised is None:
+        return factors
+    return tuple(polarised * f + (1.0 - polarised) for f in factors)
+
+
+def hex_link_sum(p, rates, mask=None):
+    """sum_j D_ij (u_j - u_i) over each interior cell's six links in a ghost-padded odd-r
+    array `p` (rows + 2, cols + 2); `rates` = per-cell rates toward the three link axes
+    (row, down-right, down-left; padded arrays or scalars), D_ij their harmonic mean (eq.
+    4.7); `mask` (see `links`) drops the links that leave a no-flux lattice."""
+    rows = p.shape[-2] - 2
+    even = (np.arange(rows) % 2 == 0)[:, None]  # static: the layout's row parity
+    r_row, r_dr, r_dl = (jnp.broadcast_to(r, p.shape) for r in rates)
+    u = p[1:-1, 1:-1]
+
+    def shifted(a, dr, dc):  # a at (r + dr, c + dc) of each interior cell
+        return a[1 + dr: a.shape[0] - 1 + dr, 1 + dc: a.shape[1] - 1 + dc]
+
+    def link(a, dr, dc):  # the exchange with the neighbour at (dr, dc), with rates `a`
+        return _links.harmonic_mean(shifted(a, 0, 0), shifted(a, dr, dc)) * (shifted(p, dr, dc) - u)
+
+    def parity(a, dr, even_dc, odd_dc):  # the diagonal neighbour by row parity
+        return jnp.where(even, link(a, dr, even_dc), link(a, dr, odd_dc))
+
+    left, right = link(r_row, 0, -1), link(r_row, 0, 1)
+    up_left, down_right = parity(r_dr, -1, -1, 0), parity(r_dr, 1, 0, 1)
+    up_right, down_left = parity(r_dl, -1, 0, 1), parity(r_dl, 1, -1, 0)
+    if mask is None:
+        return left + right + up_left + down_right + up_right + down_left
+    has_up, has_down, has_left, has_right = mask
+    # the diagonals of even rows reach the column to the left, of odd rows the right
+    to_left, to_right = jnp.where(even, has_left, 1.0), jnp.where(even, 1.0, has_right)
+    return (left * has_left + right * has_right + (up_left * to_left + up_right * to_right) * has_up
+            + (down_left * to_left + down_right * to_right) * has_down)
 
 
 def links(shape):
@@ -87,19 +132,36 @@ class HexLattice(AbstractDomain):
             Laplacian in the same units (a rate D with "sum" diffuses as 1.5 D with
             "laplacian"), spectral radius 9.
 
+        maps, anisotropic, polarity, polarised: as on `Lattice`: a diffusion map diffuses in
+            the flux form by default (each link carries the operator's weight (2/3 or 1)
+            times the harmonic mean of its two cells' rates, eq. 4.7), or "pointwise"
+            D(x) lap(u); the anisotropic species scale each cell's rate toward a neighbour
+            by |d . p| / |d| (eq. 4.8) with the six directions of the odd-r layout: along
+            the row (1, 0), and (+-1/2, sqrt(3)/2) to the rows above and below (y grows
+            with the row index, as the angle's sign). No-flux drops the links that leave.
+
     Growth (matrix expansion) is not supported on this lattice: a growing state is refused.
     Pictures: `mj.hex_image` draws the cells as hexagons.
     """
 
     boundary: str = eqx.field(static=True)
     operator: str = eqx.field(static=True)
+    maps: str = eqx.field(static=True)
+    anisotropic: tuple = eqx.field(static=True)
+    polarity: Array | None
+    polarised: Array | None
 
-    def __init__(self, boundary: str = "wrap", operator: str = "laplacian"):
+    def __init__(self, boundary: str = "wrap", operator: str = "laplacian", *, maps: str = "flux",
+                 anisotropic=(), polarity=None, polarised=None):
         self.boundary = _stencils.normalise_boundary(boundary)
         key = str(operator).lower()
         key = _OPERATOR_ALIASES.get(key, key)
         check_choice(key, "operator", OPERATORS)
         self.operator = key
+        check_choice(str(maps), "maps", _links.MAPS)
+        self.maps = str(maps)
+        self.anisotropic = _links.species_indices(anisotropic, "HexLattice")
+        self.polarity, self.polarised = _links.polarity_leaves(polarity, polarised, "HexLattice")
 
     @property
     def spectral_radius(self) -> float:
@@ -112,7 +174,8 @@ class HexLattice(AbstractDomain):
     @property
     def description(self) -> str:
         what = "Laplacian" if self.operator == "laplacian" else "neighbour sum"
-        return f"hexagonal lattice {what} ({self.boundary})"
+        aniso = ", anisotropic" if self.anisotropic and self.polarity is not None else ""
+        return f"hexagonal lattice {what} ({self.boundary}{aniso})"
 
     def check_shape(self, shape) -> None:
         """Raise a ValueError when a (rows, cols) lattice cannot hold this domain."""
@@ -152,8 +215,36 @@ class HexLattice(AbstractDomain):
         return carried[..., 1:-1, 1:-1]
 
     def diffusion(self, carried, rates):
-        op = self._operator_padded(carried)
-        return [rates[i] * op[i] for i in range(op.shape[0])]
+        n = carried.shape[0]
+        _links.check_species(self.anisotropic, n, "HexLattice")
+        on_links = [self._on_links(i, rates[i]) for i in range(n)]
+        op = None if all(on_links) else self._operator_padded(carried)
+        return [self._link_term(carried[i], rates[i], i) if on_links[i] else rates[i] * op[i] for i in range(n)]
+
+    def _on_links(self, i: int, rate) -> bool:
+        """Whether species i diffuses on the links (flux form or anisotropic): static."""
+        if i in self.anisotropic and self.polarity is not None:
+            return True
+        return self.maps == "flux" and tuple(jnp.shape(rate))[-2:] not in ((), (1,), (1, 1))
+
+    def _link_term(self, p, rate, i: int):
+        """sum_j w D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8): each
+        link's exchange is computed from both ends with the same operands (the harmonic
+        mean is symmetric in them), so what one cell gains its neighbour loses."""
+        shape = (p.shape[-2] - 2, p.shape[-1] - 2)
+        d = jnp.pad(jnp.broadcast_to(jnp.asarray(rate, p.dtype), shape), 1, mode="wrap")
+        if i in self.anisotropic and self.polarity is not None:
+            if self.polarity.ndim == 2 and tuple(self.polarity.shape) != shape:
+                raise ValueError(f"HexLattice.polarity has shape {tuple(self.polarity.shape)}; the lattice is {shape}")
+            factors = hex_direction_factors(self.polarity, self.polarised)
+            if self.polarity.ndim == 2:
+                factors = tuple(jnp.pad(f, 1, mode="wrap") for f in factors)
+            rates = tuple(d * f for f in factors)
+        else:
+            rates = (d,) * 3
+        mask = None if self.boundary == "wrap" else tuple(jnp.asarray(v, p.dtype) for v in links(shape))
+        s = hex_link_sum(p, rates, mask)
+        return s * (2.0 / 3.0) if self.operator == "laplacian" else s
 
     def write(self, carried, new, size, dynamic):
         return self._pad(new)

@@ -6,10 +6,9 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jax import Array
 
-from .._checks import check_choice, check_range, default_float, is_concrete
+from .._checks import check_choice, check_range
 from . import _links, _stencils
 from ._base import AbstractDomain
 
@@ -71,10 +70,10 @@ class Lattice(AbstractDomain):
                  anisotropic=(), polarity=None, polarised=None):
         self.stencil = _stencils.normalise_stencil(stencil)
         self.boundary = _stencils.normalise_boundary(boundary)
-        check_choice(str(maps), "maps", MAPS)
+        check_choice(str(maps), "maps", _links.MAPS)
         self.maps = str(maps)
-        self.anisotropic = _species_indices(anisotropic)
-        self.polarity, self.polarised = _polarity_leaves(polarity, polarised)
+        self.anisotropic = _links.species_indices(anisotropic, "Lattice")
+        self.polarity, self.polarised = _links.polarity_leaves(polarity, polarised, "Lattice")
 
     @property
     def spectral_radius(self) -> float:
@@ -105,9 +104,7 @@ class Lattice(AbstractDomain):
 
     def diffusion(self, carried, rates):
         n = carried.shape[0]
-        if self.anisotropic and max(self.anisotropic) >= n:
-            raise ValueError(f"Lattice.anisotropic names species {max(self.anisotropic)} (0-based) but the model has "
-                             f"{n} species; name species by position: 0..{n - 1} or 'a'..'{_LETTERS[n - 1]}'")
+        _links.check_species(self.anisotropic, n, "Lattice")
         links = [self._on_links(i, rates[i]) for i in range(n)]
         lap = None
         if not all(links):  # scalar rates, pointwise maps: the stencil, as before the flux form
@@ -159,52 +156,6 @@ class Lattice(AbstractDomain):
     def unblock(self, carried, block):
         """`carried` with a block computed by `block` written back into its corner."""
         return jax.lax.dynamic_update_slice(carried, block, (0,) * carried.ndim)
-
-
-MAPS = ("flux", "pointwise")
-_LETTERS = "abcdefghijklmnopqrstuvwxyz"
-
-
-def _species_indices(anisotropic) -> tuple:
-    """The anisotropic species as sorted 0-based positions (from indices or letters)."""
-    if isinstance(anisotropic, (str, int)):
-        anisotropic = (anisotropic,)
-    out = set()
-    for s in anisotropic:
-        if isinstance(s, str) and len(s) == 1 and s.lower() in _LETTERS:
-            out.add(_LETTERS.index(s.lower()))
-        elif isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0:
-            out.add(int(s))
-        else:
-            raise ValueError(f"Lattice.anisotropic entries must be species positions: an index >= 0 or a letter "
-                             f"'a'..'z' ('a' = first species) (got {s!r})")
-    return tuple(sorted(out))
-
-
-def _polarity_leaves(polarity, polarised):
-    """(angles with NaN replaced by 0, polarised mask or None) as array leaves."""
-    if polarity is None:
-        if polarised is not None:
-            raise ValueError("Lattice.polarised needs a polarity (an angle or a (rows, cols) array of angles)")
-        return None, None
-    angle = jnp.asarray(polarity, default_float())
-    if angle.ndim not in (0, 2):
-        raise ValueError(f"Lattice.polarity must be an angle (radians) or a (rows, cols) array of angles "
-                         f"(got shape {angle.shape})")
-    mask = None if polarised is None else jnp.asarray(polarised, default_float())
-    if mask is not None and mask.shape != angle.shape:
-        raise ValueError(f"Lattice.polarised must have the polarity's shape {angle.shape} (got {mask.shape})")
-    if is_concrete(angle):
-        values = np.asarray(angle)
-        if np.isinf(values).any():
-            raise ValueError("Lattice.polarity must be finite angles in radians, or NaN for an unpolarised cell")
-        nan = np.isnan(values)
-        if nan.any():
-            mask = jnp.asarray(~nan, default_float()) if mask is None else mask * jnp.asarray(~nan, mask.dtype)
-            angle = jnp.where(jnp.asarray(nan), 0.0, angle)
-    if mask is not None and is_concrete(mask) and not np.isin(np.asarray(mask), (0.0, 1.0)).all():
-        raise ValueError("Lattice.polarised must hold 1 (polarised) or 0 (unpolarised) per cell")
-    return angle, mask
 
 
 def as_domain(domain=None, *, stencil=None, boundary=None) -> AbstractDomain:

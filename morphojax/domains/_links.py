@@ -1,4 +1,7 @@
-"""Diffusion on the links of the square lattice: per-cell rates, the harmonic mean, polarity.
+"""Diffusion on a lattice's links: per-cell rates, the harmonic mean, polarity.
+
+The square lattice's link form is here; the hexagonal lattice's (`_hex.hex_link_sum`) uses
+the same mean and the same polarity leaves (`polarity_leaves`, `species_indices`).
 
 The flux form of the thesis (section 4.3): every link between a cell i and a neighbour j
 carries the exchange
@@ -31,6 +34,61 @@ import math
 
 import jax.numpy as jnp
 import numpy as np
+
+from .._checks import default_float, is_concrete
+
+MAPS = ("flux", "pointwise")
+LETTERS = "abcdefghijklmnopqrstuvwxyz"
+
+
+def species_indices(anisotropic, who: str) -> tuple:
+    """The anisotropic species as sorted 0-based positions (from indices or letters)."""
+    if isinstance(anisotropic, (str, int)):
+        anisotropic = (anisotropic,)
+    out = set()
+    for s in anisotropic:
+        if isinstance(s, str) and len(s) == 1 and s.lower() in LETTERS:
+            out.add(LETTERS.index(s.lower()))
+        elif isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0:
+            out.add(int(s))
+        else:
+            raise ValueError(f"{who}.anisotropic entries must be species positions: an index >= 0 or a letter "
+                             f"'a'..'z' ('a' = first species) (got {s!r})")
+    return tuple(sorted(out))
+
+
+def polarity_leaves(polarity, polarised, who: str):
+    """(angles with NaN replaced by 0, polarised mask or None) as array leaves."""
+    if polarity is None:
+        if polarised is not None:
+            raise ValueError(f"{who}.polarised needs a polarity (an angle or a (rows, cols) array of angles)")
+        return None, None
+    angle = jnp.asarray(polarity, default_float())
+    if angle.ndim not in (0, 2):
+        raise ValueError(f"{who}.polarity must be an angle (radians) or a (rows, cols) array of angles "
+                         f"(got shape {angle.shape})")
+    mask = None if polarised is None else jnp.asarray(polarised, default_float())
+    if mask is not None and mask.shape != angle.shape:
+        raise ValueError(f"{who}.polarised must have the polarity's shape {angle.shape} (got {mask.shape})")
+    if is_concrete(angle):
+        values = np.asarray(angle)
+        if np.isinf(values).any():
+            raise ValueError(f"{who}.polarity must be finite angles in radians, or NaN for an unpolarised cell")
+        nan = np.isnan(values)
+        if nan.any():
+            mask = jnp.asarray(~nan, default_float()) if mask is None else mask * jnp.asarray(~nan, mask.dtype)
+            angle = jnp.where(jnp.asarray(nan), 0.0, angle)
+    if mask is not None and is_concrete(mask) and not np.isin(np.asarray(mask), (0.0, 1.0)).all():
+        raise ValueError(f"{who}.polarised must hold 1 (polarised) or 0 (unpolarised) per cell")
+    return angle, mask
+
+
+def check_species(anisotropic, n: int, who: str) -> None:
+    """Raise a ValueError when an anisotropic species is beyond the model's `n` species."""
+    if anisotropic and max(anisotropic) >= n:
+        raise ValueError(f"{who}.anisotropic names species {max(anisotropic)} (0-based) but the model has {n} "
+                         f"species; name species by position: 0..{n - 1} or 'a'..'{LETTERS[n - 1]}'")
+
 
 # (weight along the axes, weight on the diagonals) of each stencil, cells^-2
 LINK_WEIGHTS = {"nine-point": (4.0 / 6.0, 1.0 / 6.0), "five-point": (1.0, 0.0), "moore": (1.0, 1.0)}
