@@ -9,6 +9,7 @@
 
 from .domains import BOUNDARIES, STENCILS, AbstractDomain, HexLattice, Lattice, laplacian, max_stable_dt
 from .domains import Mesh
+from .domains import gradient_polarity
 from .models import (
     AbstractModel,
     Bard,
@@ -100,6 +101,7 @@ __all__ = [
     "GiererMeinhardt",
     "glider",
     "Gradient",
+    "gradient_polarity",
     "gray_scott_state",
     "GrayScott",
     "Growth",

@@ -289,3 +289,24 @@ def test_hex_operator_is_symmetric_and_round_trips(x64):
     assert (back.boundary, back.operator, back.anisotropic, back.maps) == ("no-flux", "sum", (1,), "flux")
     np.testing.assert_array_equal(np.asarray(back.polarity), np.asarray(domain.polarity))
     np.testing.assert_array_equal(np.asarray(back.polarised), np.asarray(domain.polarised))
+
+
+# ---- polarity from a reagent's gradient (eq. 4.10) ------------------------------------------------
+def test_gradient_polarity_points_along_the_gradient(x64):
+    """A radial reagent polarises every cell radially (mod pi) and leaves the centre, where
+    the eight differences cancel, unpolarised; a ramp along a row gives angle 0."""
+    n = 15
+    r, c = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    reagent = np.hypot(r - 7, c - 7)
+    angle = np.asarray(mj.gradient_polarity(reagent, "no-flux"))
+    assert np.isnan(angle[7, 7]) and np.isfinite(np.delete(angle.ravel(), 7 * n + 7)).all()
+    inner = (np.abs(r - 7) <= 5) & (np.abs(c - 7) <= 5) & (reagent > 0)
+    expected = np.arctan2(r - 7, c - 7)
+    off = np.angle(np.exp(2j * (angle - expected)))[inner] / 2  # difference mod pi
+    assert np.abs(off).max() < 0.25  # the 8-neighbour sum's angular error on a lattice
+    axes = (reagent > 0) & ((r == 7) | (c == 7) | (np.abs(r - 7) == np.abs(c - 7))) & inner
+    np.testing.assert_allclose(off[axes[inner]], 0.0, atol=1e-12)  # exact along the symmetry lines
+    ramp = np.asarray(mj.gradient_polarity(np.broadcast_to(np.arange(n, dtype=float), (n, n)), "wrap"))
+    np.testing.assert_allclose(ramp[:, 1:-1], 0.0, atol=1e-12)
+    domain = mj.Lattice("moore", "no-flux", anisotropic="b", polarity=angle)
+    assert float(domain.polarised[7, 7]) == 0.0 and float(np.asarray(domain.polarised).sum()) == n * n - 1

@@ -152,3 +152,29 @@ def link_divergence(p, rates, stencil: str):
         f = w_diag * harmonic_mean(ra[:-1, 1:], ra[1:, :-1]) * (p[1:, :-1] - p[:-1, 1:])
         out = out + (f[1:, :-1] - f[:-1, 1:])
     return out
+
+
+def gradient_polarity(reagent, boundary: str = "no-flux"):
+    """Polarity angles from the local gradient of a reagent on the square lattice (thesis
+    eq. 4.10): p = sum_j (R_j - R) d_j / |d_j| over the eight surrounding cells, as an
+    angle in radians from +x (x along a row, y down the rows), NaN where p = 0 (an
+    unpolarised cell). `reagent` is (rows, cols); `boundary` as the lattice's ghost cells.
+    Pass the result as a `Lattice(polarity=...)` for the next phase (polarity set once from a
+    reagent; a polarity that follows the reagent during a run is not provided)."""
+    from ._stencils import normalise_boundary, pad
+
+    r = jnp.asarray(reagent)
+    p = pad(r, normalise_boundary(boundary))
+    rows, cols = r.shape[-2], r.shape[-1]
+    px = jnp.zeros_like(r)
+    py = jnp.zeros_like(r)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr == dc == 0:
+                continue
+            diff = p[..., 1 + dr: 1 + dr + rows, 1 + dc: 1 + dc + cols] - r
+            norm = math.hypot(dr, dc)
+            px = px + diff * (dc / norm)
+            py = py + diff * (dr / norm)
+    zero = (px == 0) & (py == 0)
+    return jnp.where(zero, jnp.nan, jnp.arctan2(py, px))
