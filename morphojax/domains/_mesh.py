@@ -27,7 +27,6 @@ the Gershgorin bound max_i 2 sum_j |w_ij| / M_i, which holds for every matrix.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import equinox as eqx
@@ -36,6 +35,7 @@ import numpy as np
 
 from .._checks import check_choice
 from ._base import AbstractDomain
+from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
 SAFETY = 1.01  # rho = SAFETY x the Lanczos estimate of the largest eigenvalue (from below)
@@ -124,22 +124,62 @@ def cotangent_operator(v: np.ndarray, f: np.ndarray, mass: str = "voronoi"):
     return rows, cols, w, m
 
 
-def _neighbour_table(n: int, rows, cols, w):
+def _neighbour_table(n: int, rows, cols, *ws):
     """Sum duplicate (i, j) weights and pack each vertex's neighbours into a padded table:
-    (neighbours (n, K) int32 padded with the vertex itself, weights (n, K) padded with 0)."""
+    (neighbours (n, K) int32 padded with the vertex itself, then per weight array in `ws`
+    its (n, K) table padded with 0)."""
     key = rows * n + cols
     uniq, inverse = np.unique(key, return_inverse=True)
-    summed = np.bincount(inverse, weights=w, minlength=len(uniq))
     r, c = uniq // n, uniq % n  # sorted by row, then column
     degree = np.bincount(r, minlength=n)
     k = int(degree.max())
     start = np.concatenate([[0], np.cumsum(degree)[:-1]])
     slot = np.arange(len(r)) - start[r]
     table = np.repeat(np.arange(n)[:, None], k, axis=1)
-    weights = np.zeros((n, k))
     table[r, slot] = c
-    weights[r, slot] = summed
-    return table.astype(np.int32), weights
+    out = [table.astype(np.int32)]
+    for w in ws:
+        weights = np.zeros((n, k))
+        weights[r, slot] = np.bincount(inverse, weights=w, minlength=len(uniq))
+        out.append(weights)
+    return tuple(out)
+
+
+def directional_weights(v: np.ndarray, f: np.ndarray, direction):
+    """COO (rows, cols, weights) of the directional part of the anisotropic operator: per
+    triangle T, the finite-element term -A_T (grad phi_i . t)(grad phi_j . t) of the tensor
+    t t^T, t the unit direction projected into T's plane (the mean of its corners'
+    directions for a per-vertex field). A triangle where the projection vanishes (the
+    direction along its normal) gets half its in-plane identity instead, the isotropic mean."""
+    d = np.asarray(direction, np.float64)
+    if d.shape == (3,):
+        d = np.broadcast_to(d, (len(v), 3))
+    if d.shape != (len(v), 3) or not np.isfinite(d).all():
+        raise ValueError(f"Mesh.direction must be a 3-vector or one finite 3-vector per vertex, shape ({len(v)}, 3) "
+                         f"(got {np.shape(direction)})")
+    p = [v[f[:, k]] for k in range(3)]
+    normal = np.cross(p[1] - p[0], p[2] - p[0])
+    area2 = np.linalg.norm(normal, axis=1)  # twice the area
+    nhat = normal / area2[:, None]
+    # grad phi_k = nhat x (edge opposite k, oriented k+1 -> k+2) / (2 A)
+    grads = [np.cross(nhat, p[(k + 2) % 3] - p[(k + 1) % 3]) / area2[:, None] for k in range(3)]
+    t = d[f].mean(1)
+    t = t - (t * nhat).sum(1, keepdims=True) * nhat
+    length = np.linalg.norm(t, axis=1)
+    ok = length > 1e-6 * np.maximum(np.linalg.norm(d[f].mean(1), axis=1), 1e-300)
+    t = np.where(ok[:, None], t / np.where(ok, length, 1.0)[:, None], 0.0)
+    area = area2 / 2
+    rows, cols, w = [], [], []
+    for a in range(3):
+        for b in range(3):
+            if a == b:
+                continue
+            along = (grads[a] * t).sum(1) * (grads[b] * t).sum(1)
+            iso = 0.5 * (grads[a] * grads[b]).sum(1)  # half the in-plane identity
+            rows.append(f[:, a])
+            cols.append(f[:, b])
+            w.append(-area * np.where(ok, along, iso))
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
 
 
 def largest_eigenvalue(table, weights, inverse_mass) -> float:
@@ -174,11 +214,23 @@ class Mesh(AbstractDomain):
         mass: "voronoi" (mixed Voronoi areas, Meyer et al. 2003; default) or "barycentric"
             (a third of each incident triangle's area).
 
-    The remaining keyword arguments (`neighbours`, `weights`, `inverse_mass`, `rho`) are
-    the built operator, passed back by a saved file; leave them out to build it.
+        direction: None (isotropic), or a tangent direction field for anisotropic
+            diffusion: one 3-vector (e.g. an axis, projected onto each triangle) or one
+            per vertex (e.g. the gradient of a scalar field). The diffusion tensor on a
+            triangle is then along t t^T + across (I - t t^T) in its plane, t the unit
+            projected direction: the finite-element operator of that tensor, which is the
+            cotangent operator when along = across (see `directional_weights`).
+        along, across: the factors of the diffusion rates along and across the direction
+            (dimensionless, default 1). Array leaves: they can be swept and differentiated
+            (the spectral radius is the one of the values given here).
+
+    The remaining keyword arguments (`neighbours`, `weights`, `directional`,
+    `inverse_mass`, `rho`) are the built operator, passed back by a saved file; leave them
+    out to build it.
 
     Growth is not supported on a mesh. `Mesh.from_file`, `Mesh.icosphere`, `Mesh.torus`
-    and `Mesh.capsule` make meshes; `mj.mesh_image` draws values on one.
+    and `Mesh.capsule` make meshes (their keyword `options` are those above);
+    `mj.mesh_image` draws values on one.
     """
 
     vertices: np.ndarray
@@ -186,18 +238,26 @@ class Mesh(AbstractDomain):
     neighbours: jnp.ndarray  # (V, K) int32: each vertex's neighbours, padded with itself
     weights: jnp.ndarray  # (V, K): cotangent weights w_ij, 0 on padding
     inverse_mass: jnp.ndarray  # (V,): 1 / M_i, length^-2
+    direction: np.ndarray | None  # None, (3,) or (V, 3): the anisotropy's direction field
+    directional: jnp.ndarray | None  # (V, K): weights of t t^T minus the isotropic ones, None if isotropic
+    along: jnp.ndarray  # factor of the rates along the direction
+    across: jnp.ndarray  # factor of the rates across it
     mass: str = eqx.field(static=True)
     rho: float = eqx.field(static=True)
 
-    def __init__(self, vertices, faces, mass: str = "voronoi", *, neighbours=None, weights=None, inverse_mass=None,
-                 rho=None):
+    def __init__(self, vertices, faces, mass: str = "voronoi", direction=None, along=1.0, across=1.0, *,
+                 neighbours=None, weights=None, directional=None, inverse_mass=None, rho=None):
         check_choice(mass, "Mesh.mass", MASSES)
+        for name, value in (("along", along), ("across", across)):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"Mesh.{name} must be a finite number > 0 (got {value})")
         built = (neighbours, weights, inverse_mass, rho)
         if all(x is not None for x in built):  # a saved operator: shapes checked, numbers as saved
             v = np.asarray(vertices, np.float64)
             f = np.asarray(faces, np.int64)
             table, w, inv, rho = (np.asarray(neighbours, np.int32), np.asarray(weights), np.asarray(inverse_mass),
                                   float(rho))
+            wd = None if directional is None else np.asarray(directional)
             if table.shape != w.shape or table.shape[0] != len(v) or inv.shape != (len(v),):
                 raise ValueError("Mesh: the saved operator does not match the vertices")
         else:
@@ -205,14 +265,27 @@ class Mesh(AbstractDomain):
             rows, cols, wc, m = cotangent_operator(v, f, mass)
             if not (m > 0).all():
                 raise ValueError(f"Mesh: {int((m <= 0).sum())} vertices have no positive area")
-            table, w = _neighbour_table(len(v), rows, cols, wc)
             inv = 1.0 / m
-            rho = largest_eigenvalue(table, w, inv)
+            if direction is None:
+                table, w = _neighbour_table(len(v), rows, cols, wc)
+                wd = None
+            else:
+                # the weights are linear in the tensor: w = across w_cot + (along - across) w_tt,
+                # w_tt on the same (i, j) pairs as the cotangent weights
+                dr, dc, dw = directional_weights(v, f, direction)
+                table, w, wd = _neighbour_table(len(v), np.concatenate([rows, dr]), np.concatenate([cols, dc]),
+                                                np.concatenate([wc, 0.0 * dw]), np.concatenate([0.0 * wc, dw]))
+            combined = w if wd is None else float(across) * w + (float(along) - float(across)) * wd
+            rho = largest_eigenvalue(table, combined, inv)
         self.vertices = v.astype(np.float32)
         self.faces = f.astype(np.int32)
         self.neighbours = jnp.asarray(table, jnp.int32)
         self.weights = jnp.asarray(w)
         self.inverse_mass = jnp.asarray(inv)
+        self.direction = None if direction is None else np.asarray(direction, np.float32)
+        self.directional = None if wd is None else jnp.asarray(wd)
+        self.along = jnp.asarray(along, jnp.asarray(w).dtype)
+        self.across = jnp.asarray(across, jnp.asarray(w).dtype)
         self.mass = mass
         self.rho = float(rho)
 
@@ -227,7 +300,8 @@ class Mesh(AbstractDomain):
 
     @property
     def description(self) -> str:
-        return f"mesh Laplace-Beltrami operator ({self.n_vertices} vertices, spectral radius {self.rho:.4g})"
+        kind = "Laplace-Beltrami" if self.directional is None else "anisotropic"
+        return f"mesh {kind} operator ({self.n_vertices} vertices, spectral radius {self.rho:.4g})"
 
     @property
     def n_vertices(self) -> int:
@@ -235,7 +309,10 @@ class Mesh(AbstractDomain):
 
     def _operator(self, x):
         x = jnp.asarray(x)
-        w = self.weights.astype(x.dtype) if jnp.issubdtype(x.dtype, jnp.floating) else self.weights
+        w = self.weights
+        if self.directional is not None:  # the tensor along t t^T + across (I - t t^T)
+            w = self.across * w + (self.along - self.across) * self.directional
+        w = w.astype(x.dtype) if jnp.issubdtype(x.dtype, jnp.floating) else w
         # one 1D gather per neighbour slot, accumulated (padding has w = 0): XLA:CPU runs
         # these as fused loops, while one (V, K) gather runs element by element, about 20x
         # slower (benchmarks/results/bench_mesh.md); the indices were checked at construction
@@ -287,7 +364,7 @@ class Mesh(AbstractDomain):
 
     # ---- construction --------------------------------------------------------------------
     @classmethod
-    def from_file(cls, path, mass: str = "voronoi") -> "Mesh":
+    def from_file(cls, path, **options) -> "Mesh":
         """Read an OBJ, PLY, STL or OFF triangle mesh with trimesh (quads are split;
         duplicate vertices merged, as STL needs; unused vertices and degenerate faces are
         then refused by the checks of `Mesh`)."""
@@ -304,25 +381,24 @@ class Mesh(AbstractDomain):
         loaded = trimesh.load(str(path), file_type=ext, force="mesh", process=True)
         if len(getattr(loaded, "faces", ())) == 0:
             raise ValueError(f"Mesh.from_file: {str(path)!r} holds no triangles")
-        return cls(np.asarray(loaded.vertices), np.asarray(loaded.faces), mass)
+        return cls(np.asarray(loaded.vertices), np.asarray(loaded.faces), **options)
 
     @classmethod
-    def icosphere(cls, subdivisions: int = 3, radius: float = 1.0, mass: str = "voronoi") -> "Mesh":
+    def icosphere(cls, subdivisions: int = 3, radius: float = 1.0, **options) -> "Mesh":
         """A geodesic sphere: the icosahedron with each triangle split in four `subdivisions`
         times, projected to the sphere (10 4^n + 2 vertices: 642 for n = 3, 2562 for 4)."""
-        return cls(*icosphere_arrays(subdivisions, radius), mass)
+        return cls(*icosphere_arrays(subdivisions, radius), **options)
 
     @classmethod
-    def torus(cls, major: float = 2.0, minor: float = 0.75, spacing: float = 0.1, mass: str = "voronoi") -> "Mesh":
+    def torus(cls, major: float = 2.0, minor: float = 0.75, spacing: float = 0.1, **options) -> "Mesh":
         """A torus around z with radii `major` > `minor`, triangles about `spacing` wide."""
         if not (major > minor > 0):
             raise ValueError(f"Mesh.torus needs major > minor > 0 (got {major}, {minor})")
-        phi = np.linspace(0.0, 2 * np.pi, _count(2 * np.pi * minor, spacing, 6), endpoint=False)
-        return cls(*revolve(major + minor * np.cos(phi), minor * np.sin(phi), spacing, closed=True), mass)
+        phi = np.linspace(0.0, 2 * np.pi, count(2 * np.pi * minor, spacing, 6), endpoint=False)
+        return cls(*revolve(major + minor * np.cos(phi), minor * np.sin(phi), spacing, closed=True), **options)
 
     @classmethod
-    def capsule(cls, radius: float = 1.0, length: float = 3.0, spacing: float = 0.1,
-                mass: str = "voronoi") -> "Mesh":
+    def capsule(cls, radius: float = 1.0, length: float = 3.0, spacing: float = 0.1, **options) -> "Mesh":
         """A capsule along x (a body-like shape): a cylinder of `radius` and `length` with
         hemispherical ends, triangles about `spacing` wide."""
         if not (radius > 0 and length >= 0 and spacing > 0):
@@ -330,7 +406,7 @@ class Mesh(AbstractDomain):
                              f"{spacing})")
         arc = np.pi * radius / 2  # profile: cap (a quarter circle), side, cap, by arc length
         total = 2 * arc + length
-        s = np.linspace(0.0, total, _count(total, spacing, 4) + 1)
+        s = np.linspace(0.0, total, count(total, spacing, 4) + 1)
         r = np.where(s < arc, radius * np.sin(s / radius),
                      np.where(s > arc + length, radius * np.sin((total - s) / radius), radius))
         z = np.where(s < arc, -length / 2 - radius * np.cos(s / radius),
@@ -338,7 +414,7 @@ class Mesh(AbstractDomain):
                               s - arc - length / 2))
         r[0] = r[-1] = 0.0
         v, f = revolve(r, z, spacing, closed=False)
-        return cls(v[:, [2, 0, 1]], f, mass)  # the axis along x (a cyclic swap keeps the winding)
+        return cls(v[:, [2, 0, 1]], f, **options)  # the axis along x (a cyclic swap keeps the winding)
 
 
 def _per_vertex(rate):
@@ -346,79 +422,3 @@ def _per_vertex(rate):
     domain shaped (1, 1) for a lattice; on a mesh only the last axis counts."""
     rate = jnp.asarray(rate)
     return rate.reshape(rate.shape[-1:]) if rate.ndim >= 2 else rate
-
-
-def _count(length, spacing, least):
-    if not spacing > 0:
-        raise ValueError(f"spacing must be > 0 (got {spacing})")
-    return max(least, int(round(length / spacing)))
-
-
-def icosphere_arrays(subdivisions: int, radius: float = 1.0):
-    """(vertices, faces) of a geodesic sphere (see `Mesh.icosphere`), outward winding."""
-    if not isinstance(subdivisions, (int, np.integer)) or not 0 <= subdivisions <= 7:
-        raise ValueError(f"icosphere subdivisions must be an integer in [0, 7] (got {subdivisions!r})")
-    if not radius > 0:
-        raise ValueError(f"icosphere radius must be > 0 (got {radius})")
-    t = (1 + math.sqrt(5)) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
-                  [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-                  [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-                  [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    for _ in range(int(subdivisions)):
-        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        uniq, inverse = np.unique(edges, axis=0, return_inverse=True)
-        mid = v[uniq].mean(1)
-        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
-        m = len(v) + inverse.reshape(3, -1).T  # midpoints of edges (0,1), (1,2), (2,0)
-        a, b, c = f.T
-        ab, bc, ca = m.T
-        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([b, bc, ab], 1), np.stack([c, ca, bc], 1),
-                            np.stack([ab, bc, ca], 1)])
-        v = np.concatenate([v, mid])
-    return v * radius, f
-
-
-def revolve(r, z, spacing, closed: bool):
-    """(vertices, faces) of the surface of revolution of the profile (r(s), z(s)) about z.
-
-    Each profile point becomes a ring of about 2 pi r / spacing vertices (one vertex where
-    r = 0: a pole), and neighbouring rings are stitched by walking both rings in angle and
-    always advancing the one whose next vertex comes first, so triangles stay near
-    equilateral from the poles to the widest ring. `closed`: the profile is a loop (a torus).
-    """
-    r, z = np.asarray(r, float), np.asarray(z, float)
-    counts = [1 if ri <= 1e-12 else max(3, int(round(2 * np.pi * ri / spacing))) for ri in r]
-    verts, starts = [], []
-    for k, (ri, zi, n) in enumerate(zip(r, z, counts)):
-        theta = (np.arange(n) + 0.5 * (k % 2)) * 2 * np.pi / n  # odd rings rotated half a step
-        starts.append(sum(len(x) for x in verts))
-        verts.append(np.stack([ri * np.cos(theta), ri * np.sin(theta), np.full(n, zi)], 1))
-    faces = []
-    pairs = [(k, k + 1) for k in range(len(r) - 1)] + ([(len(r) - 1, 0)] if closed else [])
-    for a, b in pairs:
-        faces += _stitch(starts[a], counts[a], (a % 2) * 0.5, starts[b], counts[b], (b % 2) * 0.5)
-    return np.concatenate(verts), np.asarray(faces, np.int64)
-
-
-def _stitch(sa, na, oa, sb, nb, ob):
-    """Triangles between ring a (na vertices from index sa, angle offset oa steps) and ring b."""
-    if na == 1 or nb == 1:  # a fan around a pole
-        pole, s, n = (sa, sb, nb) if na == 1 else (sb, sa, na)
-        tri = [(pole, s + i, s + (i + 1) % n) for i in range(n)]
-        return [(t[0], t[2], t[1]) for t in tri] if na == 1 else tri  # outward winding
-    ang_a = (np.arange(na + 1) + oa) / na
-    ang_b = (np.arange(nb + 1) + ob) / nb
-    # start both rings at the vertex of smallest angle; walk one full turn on each
-    i = j = 0
-    tri = []
-    while i < na or j < nb:
-        if j >= nb or (i < na and ang_a[i + 1] <= ang_b[j + 1]):
-            tri.append((sa + i % na, sa + (i + 1) % na, sb + j % nb))
-            i += 1
-        else:
-            tri.append((sa + i % na, sb + (j + 1) % nb, sb + j % nb))
-            j += 1
-    return tri

@@ -1,5 +1,6 @@
-"""Presets on triangle meshes: Gray-Scott spots and stripes on a sphere and a torus, and the
-leopard paper's Turing spots on a body-like capsule (paper 004's experiment, made stable).
+"""Presets on triangle meshes: Gray-Scott spots and stripes on a sphere and a torus, the
+leopard paper's Turing spots on a body-like capsule (paper 004's experiment, made stable),
+and Gray-Scott stripes that ring a capsule under anisotropic diffusion.
 
 Lengths are in the mesh's units, chosen so that an edge is about one lattice cell long:
 the lattice presets' rates (Pearson's scaled Gray-Scott, Du = 0.2097, Dv = 0.105 cells^2
@@ -124,5 +125,28 @@ def _turing_capsule(quick):
         figure="leopard paper Fig. 4 on a body (section 8.2)", show="b", cmap="inferno")
 
 
-register(ExperimentPreset("mesh-turing-capsule", "the leopard paper's Turing spots (r = 12) on a body-like capsule mesh",
+register(ExperimentPreset("mesh-turing-capsule",
+                          "the leopard paper's Turing spots (r = 12) on a body-like capsule mesh",
                           "leopard paper Fig. 4, section 8.2", _turing_capsule))
+
+
+# ---- anisotropic diffusion: stripes that ring a body ---------------------------------------
+def _rings_capsule(quick):
+    # diffusion 4x slower along the body's axis than around it (the axis projected onto the
+    # surface): the coral labyrinth, stretched around the body, closes into rings
+    mesh = (Mesh.capsule(8.0, 24.0, 1.0, direction=(1.0, 0.0, 0.0), along=0.25) if quick
+            else Mesh.capsule(14.0, 40.0, 1.0, direction=(1.0, 0.0, 0.0), along=0.25))
+    feed, kill, _ = GS_PATTERNS["stripes"]
+    model = GrayScott(feed=feed, kill=kill, du=0.2097, dv=0.105)
+    return Experiment(
+        name="mesh-gray-scott-rings-capsule",
+        initial=MeshInitial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)), names=("u", "v")),
+        phases=(Phase(model, steps=6000 if quick else 15000, dt=_dt(mesh, model, 1.0), frames=4, name="static",
+                      domain=mesh),),
+        description=f"Gray-Scott F={feed}, k={kill} on a capsule of {mesh.n_vertices} vertices with anisotropic "
+                    "diffusion (along the axis x 0.25, around it x 1): stripes ring the body",
+        figure="issue 21: anisotropic diffusion on a mesh", show="v", cmap="inferno")
+
+
+register(ExperimentPreset("mesh-gray-scott-rings-capsule", "Gray-Scott stripes ringing a capsule (anisotropic "
+                          "diffusion along a direction field)", "anisotropic mesh diffusion", _rings_capsule))
