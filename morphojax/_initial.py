@@ -8,6 +8,8 @@ production and cell division. The thesis uses a mean and a deviation per species
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 
@@ -99,9 +101,10 @@ def initial_state(model, key, shape, capacity=None) -> State:
 
     Reinforcement starts uniform in [t - w, t + w); the classic reactions (FitzHugh-Nagumo,
     Gierer-Meinhardt, Schnakenberg, Brusselator) at their homogeneous state with `around`'s
-    noise; composites stack their parts' starts.
+    noise; the thesis's reinforcement rules uniform between their limits (the thesis's
+    `conc 0.5 dev 0.5`); composites stack their parts' starts.
     """
-    from .models import Bard, Composite, GrayScott, Reinforcement, Turing
+    from .models import Bard, Composite, GrayScott, Reinforcement, RuleReinforcement, ThesisReinforcement, Turing
 
     if isinstance(model, Turing):
         return paper_state(key, shape, capacity)
@@ -115,6 +118,10 @@ def initial_state(model, key, shape, capacity=None) -> State:
     if hasattr(model, "homogeneous_state"):  # the classic reactions: their steady state, a little noise
         steady = [float(jnp.max(v)) for v in model.homogeneous_state()]
         return random_state(key, shape, *(around(v) for v in steady), names=model.species, capacity=capacity)
+    if isinstance(model, (ThesisReinforcement, RuleReinforcement)):  # uniform between the limits, as the thesis
+        lo, hi = float(jnp.min(model.lower)), float(jnp.max(model.upper))
+        lo, hi = (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else (0.0, 1.0)
+        return random_state(key, shape, (lo, hi), names=model.species, capacity=capacity)
     if isinstance(model, Composite):
         parts = [initial_state(p, jax.random.fold_in(key, i), shape, capacity) for i, p in enumerate(model.parts)]
         fields = jnp.concatenate([p.fields for p in parts])

@@ -27,7 +27,10 @@ def test_presets_lists_the_papers_experiments(capsys):
     for name in ("young-fig8", "dur-fig9", "life-glider"):
         assert name in out
     assert max(len(line) for line in out.splitlines()) <= 100
-    assert {p.kind for p in mj.PRESETS.values()} == {"reaction-diffusion", "automaton"}
+    kinds = {p.kind for p in mj.PRESETS.values()}
+    assert kinds >= {"reaction-diffusion", "automaton", "potts"}
+    for kind in kinds:  # each kind has its section
+        assert f"{kind} presets" in out
     assert all(p.figure and p.description and p.build or getattr(p, "members", ()) for p in mj.PRESETS.values())
 
 

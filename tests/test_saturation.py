@@ -263,3 +263,12 @@ def test_presets_round_trip_through_json():
             assert type(a.model) is type(b.model) and a.domain == b.domain
             for key, value in a.model.parameters().items():
                 np.testing.assert_array_equal(b.model.parameters()[key], value)
+
+
+def test_default_start_of_the_reinforcement_rules_lies_between_their_limits():
+    """`initial_state` (what `sweep(shape=...)` uses) draws the thesis's rules uniformly between
+    their limits (the thesis's `conc 0.5 dev 0.5` for [0, 1])."""
+    for model in (mj.ThesisReinforcement(), mj.RuleReinforcement(lower=0.0, upper=3.0)):
+        values = mj.initial_state(model, jax.random.key(0), (20, 20)).arrays()[0]
+        assert values.min() >= float(model.lower[0]) and values.max() <= float(model.upper[0])
+        assert values.max() - values.min() > 0.8 * float(model.upper[0] - model.lower[0])
