@@ -18,10 +18,8 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
-from typing import Any
 
 import equinox as eqx
 import jax
@@ -33,112 +31,10 @@ import morphojax as mj
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
 from ._stats import StatsConfig, distance, mean_stats, noise_of, residuals, texture_stats
+from ._result import FitResult
 from ._target import Target, load_target
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
-
-
-@dataclasses.dataclass
-class FitResult:
-    """Everything a fit found and how.
-
-    params: fitted values by name; model: the fitted model or experiment; loss: final loss
-    (in noise units); noise_floor: the loss expected if the target were a sample of the fitted
-    parameters; history: list of {stage, start, evaluation, loss}; timings: seconds per stage;
-    stats: target and fit statistics; report: region statistics (spot counts, areas,
-    eccentricity, Euler number); design: the global stage's points and losses; fields: the
-    target field and one simulated field of the fit, for previews.
-    """
-
-    params: dict
-    model: Any
-    loss: float
-    noise_floor: float
-    history: list
-    timings: dict
-    stats: dict
-    report: dict
-    design: list
-    fields: dict
-    config: dict
-    target: dict
-    family: str = ""
-    score: float = float("nan")  # the loss with the config's fixed noise scales (same yardstick for every family)
-    ranking: list = dataclasses.field(default_factory=list)
-    intervals: dict = dataclasses.field(default_factory=dict)
-    undetermined: list = dataclasses.field(default_factory=list)
-    palette: list | None = None
-    simulator: Any = dataclasses.field(default=None, repr=False)
-
-    @property
-    def sample(self) -> np.ndarray:
-        """One simulated field of the fit at lattice resolution, in [0, 1] with the pigment
-        bright: the species compared with the target, so orientation and polarity are the
-        target's after `invert`."""
-        from ._report import unit
-
-        return unit(self.fields["fit"])
-
-    def save_sample(self, path) -> Path:
-        """Write `sample` as a grey PNG (one pixel per lattice cell)."""
-        from PIL import Image
-
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(np.round(255 * self.sample).astype(np.uint8), "L").save(path)
-        return path
-
-    def render(self, path=None, size=512, palette="photo", seed: int = 0):
-        """The fitted coat as a large picture (PIL image; saved when `path` is given).
-
-        size: pixels (an int for a square, or (width, height)); palette: "photo" (the
-        target crop's colours, see `fitting.photo_palette`), "grey", or a list of
-        (position, (r, g, b)) stops. Models are re-simulated on a larger wrapped lattice
-        at the target's cells per pixel, so the picture wraps seamlessly; experiments tile
-        their fitted field."""
-        from ._palette import render_coat
-
-        img = render_coat(self, size=size, palette=palette, seed=seed)
-        if path is not None:
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-            img.save(path)
-        return img
-
-    def describe(self) -> str:
-        """What the fit found, in words: the family, each parameter with its interval, which
-        are not determined, and how far from the noise floor the fit is."""
-        from ._report import describe
-
-        return describe(self)
-
-    def to_json(self) -> dict:
-        """Everything in the result as a JSON-ready dict (top-level 'params')."""
-        model = mj.model_to_dict(self.model) if isinstance(self.model, mj.AbstractModel) else self.model.to_dict()
-        return mj.to_jsonable({
-            "params": self.params, "family": self.family, "loss": self.loss, "noise_floor": self.noise_floor,
-            "loss_over_noise_floor": self.loss / self.noise_floor if self.noise_floor > 0 else None,
-            "score": self.score if np.isfinite(self.score) else None,
-            "ranking": self.ranking, "intervals": {k: list(v) for k, v in self.intervals.items()},
-            "undetermined": list(self.undetermined), "summary": self.describe(), "palette": self.palette,
-            "model": model, "target": self.target, "config": self.config, "timings": self.timings,
-            "stats": self.stats, "report": self.report, "design": self.design, "history": self.history,
-        })
-
-    def save_json(self, path) -> Path:
-        """Write `to_json()` to `path`; returns the path."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_json(), allow_nan=False, indent=1))
-        return path
-
-    def preview(self, path=None, scale: int | None = None):
-        """Side-by-side picture target | fitted simulation | loss curve (PIL image); saved when `path` is given."""
-        from ._report import preview
-
-        img = preview(self, scale=scale)
-        if path is not None:
-            img.save(path)
-        return img
 
 
 def _as_template(model, shape):
@@ -176,23 +72,23 @@ def _design_batch(sim, space, cfg, thetas, keys, tstats):
 
 
 @eqx.filter_jit
-def _seed_stats(sim, space, cfg, theta, keys):
-    return jax.vmap(lambda k: texture_stats(sim.run(space.as_dict(theta), k), cfg))(keys)
+def _seed_run(sim, space, cfg, theta, keys):
+    """Per-seed statistics at theta and the first seed's field (one program serves the
+    noise, the noise floor, the sample and, averaged, the fit's statistics)."""
+    fields = jax.vmap(lambda k: sim.run(space.as_dict(theta), k))(keys)
+    return jax.vmap(lambda f: texture_stats(f, cfg))(fields), fields[0]
 
 
-@eqx.filter_jit
-def _loss_at(sim, space, cfg, z, keys, tstats, noise):
-    return distance(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise)
+def _mean_at(sim, space, cfg, theta, keys) -> dict:
+    per_seed, _ = _seed_run(sim, space, cfg, jnp.asarray(theta, jnp.float32), keys)
+    return jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
 
 
-@eqx.filter_jit
-def _mean_stats_at(sim, space, cfg, theta, keys):
-    return _stats_at(sim, space, cfg, theta, keys)
+def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> float:
+    """The local stage's loss at z, through `_seed_run` (no separate compiled program)."""
+    theta = space.from_free(jnp.asarray(z, jnp.float32))
+    return float(distance(_mean_at(sim, space, cfg, theta, keys), tstats, cfg, noise))
 
-
-@eqx.filter_jit
-def _sample(sim, space, theta, key):
-    return sim.run(space.as_dict(theta), key)
 
 
 def _loss_fn(z, args):
@@ -453,7 +349,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     # ---- noise at the best design point -------------------------------------------------
     t0 = time.perf_counter()
     noise_keys = jax.random.split(jax.random.key(seed + 2), max(noise_seeds, 3))
-    per_seed = _seed_stats(sim, space, stats, jnp.asarray(thetas[order[0]], jnp.float32), noise_keys)
+    per_seed, _ = _seed_run(sim, space, stats, jnp.asarray(thetas[order[0]], jnp.float32), noise_keys)
     noise = jax.tree_util.tree_map(np.asarray, noise_of(per_seed))
     timings["noise"] = time.perf_counter() - t0
 
@@ -465,12 +361,15 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     for k, z0 in enumerate(starts):
         z0 = jnp.asarray(z0, jnp.float32)
         rec.start = k
-        start_loss = float(_loss_at(sim, space, stats, z0, keys, tstats, noise))
+        if max_steps == 0:  # no local search: the design's best is scored in the report
+            finals.append((float("nan"), np.asarray(z0), "design", float("nan")))
+            continue
+        start_loss = _loss_of(sim, space, stats, z0, keys, tstats, noise)
         z, used = _local(method, args, z0, max_steps, learning_rate, rec)
-        end_loss = float(_loss_at(sim, space, stats, z, keys, tstats, noise))
+        end_loss = _loss_of(sim, space, stats, z, keys, tstats, noise)
         if fallback and method != "nelder-mead" and max_steps > 0 and not end_loss < 0.99 * start_loss:
             z_nm, _ = _local("nelder-mead", args, z0, max_steps, learning_rate, rec)
-            nm_loss = float(_loss_at(sim, space, stats, z_nm, keys, tstats, noise))
+            nm_loss = _loss_of(sim, space, stats, z_nm, keys, tstats, noise)
             if nm_loss < end_loss:
                 z, end_loss, used = z_nm, nm_loss, f"{used}->nelder-mead"
         finals.append((end_loss, np.asarray(z), used, start_loss))
@@ -478,16 +377,19 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     # ---- report -----------------------------------------------------------------------
     t0 = time.perf_counter()
-    finals.sort(key=lambda f: f[0])
+    finals.sort(key=lambda f: f[0] if np.isfinite(f[0]) else np.inf)
     best_loss, z_best, used, _ = finals[0]
     theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
-    fit_stats = _mean_stats_at(sim, space, stats, theta_best, keys)
+    fit_stats = _mean_at(sim, space, stats, theta_best, keys)
+    if not np.isfinite(best_loss):
+        best_loss = float(distance(fit_stats, tstats, stats, noise))
+        finals[0] = (best_loss, *finals[0][1:3], best_loss)
     floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
-    singles = _seed_stats(sim, space, stats, theta_best, floor_keys)
+    singles, sample = _seed_run(sim, space, stats, theta_best, floor_keys)
     floor = float(np.mean([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats, noise))
                            for i in range(len(floor_keys))]))
-    sample = np.asarray(_sample(sim, space, theta_best, floor_keys[0]))
+    sample = np.asarray(sample)
     from ._report import region_stats
 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
