@@ -92,4 +92,4 @@ for _case in FIG5_13_CASES:
 register(ExperimentPreset(
     "thesis-fig5.13", "anisotropic diffusion: isotropic, both, only V, only U (four tiles)", "thesis Fig. 5.13",
     members=tuple(f"thesis-fig5.13-{c}" for c in FIG5_13_CASES),
-    col_labels=("isotropic", "both anisotropic", "V anisotropic", "U anisotropic")))
+    row_labels=("polarity 0",), col_labels=("isotropic", "both", "V only", "U only")))
