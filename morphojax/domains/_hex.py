@@ -139,6 +139,9 @@ class HexLattice(AbstractDomain):
             by |d . p| / |d| (eq. 4.8) with the six directions of the odd-r layout: along
             the row (1, 0), and (+-1/2, sqrt(3)/2) to the rows above and below (y grows
             with the row index, as the angle's sign). No-flux drops the links that leave.
+            Every link's rate is at most D_max (a harmonic mean lies between its rates,
+            |d . p| / |d| <= 1), so the operator stays below D_max times the isotropic one
+            in the order of symmetric matrices: the spectral radius above bounds it.
 
     Growth (matrix expansion) is not supported on this lattice: a growing state is refused.
     Pictures: `mj.hex_image` draws the cells as hexagons.
