@@ -17,12 +17,22 @@ mass-weighted total sum_i M_i u_i.
 The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
 as a padded table (vertices, max degree) of indices with their weights (zero on padding)
 and the inverse masses. Applying it in JAX is one gather per column of the table and a
-sum, no scatter: it fuses with the reaction into one loop on CPU. Stability: forward Euler on pure
-diffusion is stable while dt * D * rho <= 2, rho the largest eigenvalue of M^-1 W_L (the
-Laplacian is negative semi-definite for any mesh: it is the Dirichlet energy of the linear
-interpolant); rho is computed at construction by Lanczos iterations on the symmetric form
+sum, no scatter, fused with the reaction. Stability: forward Euler on pure diffusion is
+stable while dt * D * rho <= 2, rho the largest eigenvalue of -L (L is negative
+semi-definite for any mesh: -u^T M L u is the Dirichlet energy of the linear interpolant);
+rho is computed at construction by Lanczos iterations (scipy's eigsh) on the symmetric form
 M^-1/2 (D - W) M^-1/2, times 1.01 (the iterations approach it from below), and never above
 the Gershgorin bound max_i 2 sum_j |w_ij| / M_i, which holds for every matrix.
+
+Anisotropic diffusion (`direction=`, `along=`, `across=`): the finite-element operator of
+the tangent tensor along t t^T + across (I - t t^T) on each triangle, t the direction field
+projected into the triangle's plane. Its weights are linear in the tensor, so the domain
+keeps the cotangent weights and those of t t^T and combines them in the step: `along` and
+`across` stay differentiable leaves. It is symmetric with rows summing to zero (mass is
+conserved) and reduces to the cotangent operator when along = across. Why this
+construction: it is the Galerkin discretisation of div(D grad u), consistent on any
+triangulation, where a per-edge reweighting (scaling w_ij by the edge's alignment with t)
+is not; a scalar field's gradient or a coordinate axis gives t directly.
 """
 
 from __future__ import annotations
