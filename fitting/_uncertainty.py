@@ -10,6 +10,11 @@ J comes from central differences in u with common random numbers (the fit's own 
 gradients through truncated runs are biased and a difference of width h averages over the
 small-scale ruggedness of the loss.
 
+When the target is not a sample of the model (a photo: loss well above the noise floor),
+the variances are inflated by loss / noise floor (the reduced chi-square correction for a
+misspecified model), so the intervals widen with the misfit instead of claiming the precision
+a perfect model would have.
+
 A parameter is *undetermined* when its 95% interval spans more than half its bounds (in
 unit coordinates), or when the information matrix is singular along it (a flat direction,
 such as upper_a above where it binds).
@@ -75,8 +80,9 @@ def undetermined_mask(low_u, high_u, flat_mask, span: float = 0.5):
     return np.asarray(flat_mask) | ((np.asarray(high_u) - np.asarray(low_u)) > span)
 
 
-def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04):
-    """({name: (low, high)} in natural units, [undetermined names]) at the fitted `theta`."""
+def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04, inflate: float = 1.0):
+    """({name: (low, high)} in natural units, [undetermined names]) at the fitted `theta`;
+    `inflate` (>= 1) multiplies the variances (loss / noise floor for a misspecified fit)."""
     u_star = space.to_unit(np.asarray(theta))
     u0 = np.clip(u_star, h, 1 - h)  # the difference points stay inside the bounds
     d = space.size
@@ -86,7 +92,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     if not np.isfinite(vecs).all():
         return {n: (float("nan"), float("nan")) for n in space.names}, list(space.names)
     J = (vecs[:d] - vecs[d:]).T / (2 * h)
-    var = group_variances(tstats, cfg, len(keys))
+    var = group_variances(tstats, cfg, len(keys)) * max(float(inflate), 1.0)
     low, high, _, flat = laplace_intervals(J, u_star, var)
     und = undetermined_mask(low, high, flat)
     out = {}
