@@ -185,7 +185,8 @@ def _write_outputs(result, out: Path, args):
     size, seconds = result.state.shape, result.metadata["run"]["seconds"]
     report({"preset": result.experiment.name, "written": written, "size": list(size),
             "steps": int(result.state.step), "seconds": round(seconds, 2)},
-           f"{result.experiment.name}: {int(result.state.step)} steps, {size[0]}x{size[1]} lattice, {seconds:.1f} s; "
+           f"{result.experiment.name}: {int(result.state.step)} steps, {'x'.join(map(str, size))} "
+           f"{'lattice' if len(size) > 1 else 'vertices'}, {seconds:.1f} s; "
            f"wrote {', '.join(written)}", args.quiet)
 
 

@@ -46,9 +46,9 @@ class AbstractDomain(eqx.Module):
         """A few words naming the operator, for messages ("nine-point stencil")."""
 
     @property
+    @abc.abstractmethod
     def supports_growth(self) -> bool:
         """Whether a growing state (matrix expansion, `growth=`) may run on this domain."""
-        return False
 
     # ---- what the stepping loop uses -------------------------------------------------
     @abc.abstractmethod

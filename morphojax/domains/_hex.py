@@ -171,6 +171,10 @@ class HexLattice(AbstractDomain):
         return SPECTRAL_RADIUS[self.operator]
 
     @property
+    def supports_growth(self) -> bool:
+        return False  # matrix expansion inserts rows and columns of a square layout
+
+    @property
     def ndim(self) -> int:
         return 2
 

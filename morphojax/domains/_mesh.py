@@ -305,6 +305,10 @@ class Mesh(AbstractDomain):
         return self.rho
 
     @property
+    def supports_growth(self) -> bool:
+        return False  # a mesh's vertices are fixed; matrix expansion is for lattices
+
+    @property
     def ndim(self) -> int:
         return 1
 
