@@ -27,6 +27,7 @@ import numpy as np
 from .._experiment import Experiment, Initial, Phase
 from ..domains import Lattice
 from ..models import Bard
+from ._lattices import thesis_run
 from ._registry import ExperimentPreset, register
 
 FIG5_1_SHAPE = (15, 15)
@@ -70,14 +71,10 @@ def _fig5_13(case: str):
     def build(quick):
         shape, steps = ((32, 32), 1500) if quick else ((40, 40), 5000)
         domain = Lattice("moore", "no-flux", anisotropic=FIG5_13_CASES[case], polarity=0.0)
-        return Experiment(
-            name=f"thesis-fig5.13-{case}", initial=Initial("thesis", shape, params=(2.0, 4.0)),
-            phases=(Phase(Bard(**FIG5_13), steps=steps, dt=1.0, frames=4, name="static", domain=domain),),
-            description=f"thesis Fig. 5.13 on {shape[0]}x{shape[1]} cells polarised along a row (angle 0): "
-                        f"{'no species' if not FIG5_13_CASES[case] else ' and '.join(FIG5_13_CASES[case])} "
-                        "anisotropic (U = a, V = b; Du 0.08, Dv 0.01, scale 0.01, dt 1)",
-            figure="thesis Fig. 5.13", show="b",
-        )
+        which = " and ".join(FIG5_13_CASES[case]) or "no species"
+        return thesis_run(f"thesis-fig5.13-{case}", FIG5_13, shape, steps, domain,
+                          f"thesis Fig. 5.13 on {shape[0]}x{shape[1]} cells polarised along a row (angle 0): {which} "
+                          "anisotropic (U = a, V = b; Du 0.08, Dv 0.01, scale 0.01, dt 1)", "thesis Fig. 5.13")
 
     return build
 

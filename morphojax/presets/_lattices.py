@@ -20,18 +20,23 @@ from ._registry import ExperimentPreset, register
 LISTING_5_1 = dict(alpha=16.0, beta=12.0, sp=0.01, da=0.06, db=0.01)  # U = a, V = b
 
 
+def thesis_run(name, rates, shape, steps, domain, description, figure) -> Experiment:
+    """One static run of the thesis's chapter 5 in the Bard form (alpha 16, beta 12 and the
+    given rates), from its random start (conc 4 dev 2) at dt 1, showing V."""
+    return Experiment(
+        name=name, initial=Initial("thesis", shape, params=(2.0, 4.0)),
+        phases=(Phase(Bard(**rates), steps=steps, dt=1.0, frames=4, name="static", domain=domain),),
+        description=description, figure=figure, show="b")
+
+
 def _fig5_10(lattice: str):
     def build(quick):
         domain = HexLattice("wrap", operator="sum") if lattice == "hex" else Lattice("moore", "wrap")
         shape, steps = ((24, 24), 2000) if quick else ((40, 40), 5000)
-        return Experiment(
-            name=f"thesis-fig5.10-{lattice}", initial=Initial("thesis", shape, params=(2.0, 4.0)),
-            phases=(Phase(Bard(**LISTING_5_1), steps=steps, dt=1.0, frames=4, name="static", domain=domain),),
-            description=f"thesis Listing 5.1 on a {shape[0]}x{shape[1]} "
-                        f"{'hexagonal lattice (six-neighbour sum)' if lattice == 'hex' else 'square lattice (Moore sum)'}"
-                        ": conc 4 dev 2, Du 0.06, Dv 0.01, scale 0.01, dt 1",
-            figure="thesis Fig. 5.10", show="b",
-        )
+        where = "hexagonal lattice (six-neighbour sum)" if lattice == "hex" else "square lattice (Moore sum)"
+        return thesis_run(f"thesis-fig5.10-{lattice}", LISTING_5_1, shape, steps, domain,
+                          f"thesis Listing 5.1 on a {shape[0]}x{shape[1]} {where}: conc 4 dev 2, Du 0.06, Dv 0.01, "
+                          "scale 0.01, dt 1", "thesis Fig. 5.10")
 
     return build
 
