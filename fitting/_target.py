@@ -173,6 +173,9 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
                 im.load()
         except FileNotFoundError:
             raise ValueError(f"cannot read image {path}: no such file") from None
+        except Image.DecompressionBombError as err:  # Pillow's guard against huge images
+            raise ValueError(f"load_target.source: {path} is too large to open safely ({err}); crop or "
+                             "downscale it first (at most about 180 megapixels)") from None
         except (UnidentifiedImageError, OSError) as err:
             raise ValueError(f"cannot read image {path}: {err}") from None
         name = str(path)

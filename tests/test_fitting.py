@@ -397,3 +397,13 @@ def test_sample_and_render(small_fit, tmp_path):
     assert result.sample.min() >= 0 and result.sample.max() <= 1
     coat = result.render(tmp_path / "coat.png", size=(80, 60), palette="grey")
     assert coat.size == (80, 60) and (tmp_path / "coat.png").exists()
+
+
+def test_a_huge_photo_is_a_clear_error(tmp_path, monkeypatch):
+    """Pillow's decompression-bomb guard becomes the project's ValueError naming the parameter."""
+    from PIL import Image
+
+    Image.new("RGB", (64, 64)).save(tmp_path / "big.png")
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # 64 x 64 = 4096 > 2 x 1000: refused as a bomb
+    with pytest.raises(ValueError, match="load_target.source: .* too large"):
+        fitting.load_target(tmp_path / "big.png")
