@@ -2,19 +2,18 @@
 
 Every frame goes through the same colour range (the range of all frames together unless
 `vmin`/`vmax` are given), so a rollout becomes a movie without flicker. The file is written
-to a temporary beside `path` and swapped in, so a crash keeps the last good one.
+atomically (`_serialise.write_atomically`), so a crash keeps the last good one.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from ._render import to_image
+from ._serialise import write_atomically
 
 FORMATS = (".gif", ".mp4")
 
@@ -61,20 +60,14 @@ def save_animation(path, frames, *, cmap="inferno", vmin=None, vmax=None, scale:
     lo = float(values.min()) if vmin is None else vmin
     hi = float(values.max()) if vmax is None else vmax
     images = [a.convert("RGB") if isinstance(a, Image.Image) else to_image(a, cmap, lo, hi, scale) for a in arrays]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        if path.suffix.lower() == ".gif":
+    if path.suffix.lower() == ".gif":
+        def write(tmp):
             images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps),
                            loop=0)
-        else:
+    else:
+        def write(tmp):
             _write_mp4(tmp, images, fps)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomically(path, write)
 
 
 def _write_mp4(path, images, fps):

@@ -258,19 +258,34 @@ def save_npz(path, state: State, metadata: dict) -> Path:
 
 
 def write_npz(path, **arrays) -> Path:
-    """`np.savez_compressed` that never leaves a half-written file: the archive goes to a
-    temporary file beside `path`, which then replaces `path` in one step, so a crash keeps
-    the last good file. Like NumPy, adds `.npz` when `path` has no such suffix."""
+    """`np.savez_compressed` that never leaves a half-written file (see `write_atomically`).
+    Like NumPy, adds `.npz` when `path` has no such suffix."""
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
+
+    def write(tmp):
+        with open(tmp, "wb") as handle:
             np.savez_compressed(handle, **arrays)
-            handle.flush()
-            os.fsync(handle.fileno())
+
+    return write_atomically(path, write)
+
+
+def write_atomically(path, write) -> Path:
+    """Write a file so that a crash never destroys the last good one: `write(temporary)`
+    fills a temporary beside `path` (same suffix), which is flushed to disk and then replaces
+    `path` in one step; a temporary whose writing failed is removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -8,10 +8,9 @@ from pathlib import Path
 
 import morphojax as mj
 from morphojax._checks import check_range  # the library's range messages, for the flags
-from morphojax._render import png_path
 from morphojax.presets import run_automaton, run_life_like
 
-from ._output import report
+from ._output import picture_path, report
 
 DEFAULT_SPECIES = (3.2, 6.0, 1.0, -0.2)  # paper 002's two-species example (section 4.2)
 
@@ -67,8 +66,7 @@ def _run_ca(args) -> int:
     check_range(args.steps, "--steps", low=0)
     if args.p is not None:
         check_range(args.p, "--p (probability)", low=0.0, high=1.0)
-    out = png_path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    out = picture_path(args.out)
     shape = (int(args.size),) * int(args.dim)
     run = dict(p=args.p, steps=args.steps, stop=args.stop_at_convergence, seed=args.seed, out=out,
                threshold=args.threshold)

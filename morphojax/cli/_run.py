@@ -27,11 +27,10 @@ import time
 from pathlib import Path
 
 import morphojax as mj
-from morphojax._render import png_path  # the one place a picture's path gets its .png
 from morphojax.presets import lookup
 from morphojax.presets._automaton_outputs import default_scale, lattice_picture
 
-from ._output import report
+from ._output import picture_path, report
 
 GIF_FRAMES = 24  # snapshots a run takes for `--gif` (spread over its phases)
 TABLE_WIDTH = 100  # `morphojax presets` fits a terminal this wide (or the terminal, if narrower)
@@ -114,7 +113,7 @@ def presets_table(presets, width: int = TABLE_WIDTH) -> list[str]:
 # ---- run: dispatch on the preset's kind ------------------------------------------------------
 def _cmd_run(args):
     item = lookup(args.name)
-    out = _picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png")
+    out = picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png")
     return RUNNERS[item.kind](item, args, out)
 
 
@@ -200,13 +199,6 @@ def _write_movie(result, args) -> Path:
                              vmax=style.get("vmax"), scale=args.scale)
 
 
-def _picture_path(path) -> Path:
-    """`path` ending in .png, its folder created."""
-    out = png_path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    return out
-
-
 def _can_show(state, exp) -> bool:
     """Whether a snapshot holds the species the experiment shows."""
     if exp.show == "melanin":
@@ -248,7 +240,7 @@ def _cmd_resume(args):
     run = meta.get("run", {})
     if int(run.get("phase", 0)) >= len(exp.phases):
         print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
-    out = _picture_path(args.out if args.out is not None else args.checkpoint)
+    out = picture_path(args.out if args.out is not None else args.checkpoint)
     args.seed = int(run["seed"]) if run.get("seed") is not None else 0  # a key-started run resumes with its key
     result = _run_one(exp, args, out.with_suffix(".npz"), resume=(state, meta))
     _write_outputs(result, out, args)
@@ -256,7 +248,7 @@ def _cmd_resume(args):
 
 
 def _cmd_render(args):
-    out = _picture_path(args.out)
+    out = picture_path(args.out)
     kind = file_kind(args.result)
     if kind == "sweep":
         mj.load_sweep(args.result).montage(species=args.species if args.species is not None else -1,
