@@ -73,6 +73,8 @@ from .automata import (
     write_species_meshes,
 )
 from .potts import Potts, PottsState, potts_blob, potts_image, type_clusters
+from . import cells
+from .cells import Cells, cell_disc, cell_grid, cells_at, simulate_cells
 
 from ._version import __version__
 
@@ -183,6 +185,12 @@ __all__ = [
     "wireworld_clock",
     "YoungCA",
     "Potts",
+    "Cells",
+    "cell_disc",
+    "cell_grid",
+    "cells",
+    "cells_at",
+    "simulate_cells",
     "PottsState",
     "potts_blob",
     "potts_image",

@@ -1,0 +1,26 @@
+"""The thesis's off-lattice cell simulator (Pattern Explorer, thesis chapters 3-4): point
+cells that react, diffuse, polarise, divide and collide, driven by rules."""
+
+from ._prepattern import LATTICES, SPACING, cell_disc, cell_grid, cells_at, disc_positions, grid_positions
+from ._rules import (
+    AGE,
+    BIRTH,
+    NEIGHBORS,
+    Always,
+    Chance,
+    Change,
+    Compare,
+    Divide,
+    Map,
+    Polarize,
+    React,
+    Rule,
+    Var,
+    Within,
+    conc,
+    diff,
+    mapped,
+)
+from ._space import PACKING_AREA, Box, Packed
+from ._state import Cells, concatenate, make_cells
+from ._simulate import INFLUENCE_RADIUS, simulate_cells

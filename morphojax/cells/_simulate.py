@@ -1,0 +1,138 @@
+"""`simulate_cells`: run the cell simulator for a number of iterations under one
+`jax.lax.scan` (pure: `jit`, `vmap` over a parameter and `grad` of a loss of the final
+concentrations all work)."""
+
+from __future__ import annotations
+
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._checks import as_float_array, check_count, check_finite, check_range, is_concrete
+from .._status import SimulationError
+from ..models import AbstractModel
+from ._neighbours import Search, table_size_for
+from ._rules import Chance, Change, Divide, React, Rule, check_rules
+from ._space import as_domain
+from ._state import Cells
+from ._step import Settings, step
+
+INFLUENCE_RADIUS = 3.0  # thesis 4.2: the six hexagonal or eight Moore neighbours of unit-radius cells
+SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move of 0.15
+
+
+def simulate_cells(
+    model: AbstractModel | None,
+    cells: Cells,
+    steps: int,
+    dt=1.0,
+    *,
+    rules=(),
+    key=None,
+    species=None,
+    domain=None,
+    division_limit: int | None = None,
+    influence_radius: float = INFLUENCE_RADIUS,
+    max_neighbours: int = 32,
+    bucket_size: int = 16,
+    throw: bool = True,
+) -> Cells:
+    """Run `steps` iterations of the thesis's cell simulator (chapter 4).
+
+    Args:
+        model: a reaction every live cell runs every iteration (`React(model, species)`
+            placed before `rules`), or None for rules only. The model's upper limits are
+            added to the cells' (the smaller wins). The cells carry their own diffusion
+            rates (eq. 4.7 combines them); the model's rates are not used here:
+            `cell_grid(shape, model)` seeds cells with them.
+        cells: the initial `Cells` (with room to divide into: see `capacity`).
+        steps: iterations to run.
+        dt: the time step multiplying reactions and diffusion (not `Change` amounts).
+        rules: `Rule`s evaluated every iteration, in order (thesis 4.8.5).
+        key: a `jax.random` key, required when a rule draws random numbers.
+        species: the reagents `model` reacts (default: the cells' first ones).
+        domain: None (unbounded), (width, height) / `Box`, or "packed" / `Packed(area)`.
+        division_limit: cells with more neighbours than this do not divide (4.8.1).
+        influence_radius: neighbours are the cells closer than this (4.2).
+        max_neighbours, bucket_size: room in the neighbour search per cell and per bucket.
+        throw: raise `SimulationError` (naming the iteration) when the run blew up, a
+            division found no room or the neighbour search overflowed. Inside `jit` or
+            `vmap` nothing is raised: read `cells.ok` / `cells.message()`.
+
+    Returns the cells after the run; `cells.step` counts iterations across calls, so a
+    run can be resumed by calling again with the result.
+    """
+    if not isinstance(cells, Cells):
+        raise ValueError(f"cells must be a Cells state (got {type(cells).__name__}); build one with mj.cell_grid")
+    check_count(steps, "steps", "iterations")
+    dt = as_float_array(dt, "dt")
+    check_finite(dt, "dt")
+    check_range(dt, "dt", low=0.0, low_open=True)
+    check_range(influence_radius, "influence_radius", low=0.0, low_open=True)
+    check_count(max_neighbours, "max_neighbours", "neighbours", low=1)
+    check_count(bucket_size, "bucket_size", "cells", low=1)
+    if division_limit is not None:
+        check_count(division_limit, "division_limit", "neighbours")
+    rules = tuple(rules)
+    if model is not None:
+        if not isinstance(model, AbstractModel):
+            raise ValueError(f"model must be a morphojax model or None (got {type(model).__name__})")
+        reacting = tuple(species) if species is not None else cells.species[: model.n_species]
+        rules = (Rule(React(model, reacting)),) + rules
+        cells = _with_model_limits(cells, model, reacting)
+    rules = check_rules(rules, cells.species)
+    if key is None:
+        if _draws(rules):
+            raise ValueError("key is required: a rule draws random numbers (Chance, a spread, or a Divide with spread)")
+        key = jax.random.key(0)
+    settings = Settings(
+        dt=dt,
+        domain=as_domain(domain),
+        influence_radius=float(influence_radius),
+        division_limit=division_limit,
+        search=Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=int(max_neighbours),
+                      bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity)),
+    )
+    out = _run(cells, rules, settings, key, steps)
+    if throw and is_concrete(out.count, out.overflow_step) and not bool(out.ok):
+        raise SimulationError(out.message())
+    return out
+
+
+@eqx.filter_jit
+def _run(cells: Cells, rules, settings: Settings, key, steps: int) -> Cells:
+    neighbours = settings.search.build(cells.position, cells.count)
+    cells = eqx.tree_at(
+        lambda c: c.neighbour_overflow_step, cells,
+        jnp.where((cells.neighbour_overflow_step < 0) & neighbours.overflow, cells.step, cells.neighbour_overflow_step),
+    )
+
+    def body(carry, _):
+        cells, neighbours = carry
+        return step(cells, neighbours, rules, settings, key), None
+
+    (cells, _), _ = jax.lax.scan(body, (cells, neighbours), None, length=steps)
+    return cells
+
+
+def _with_model_limits(cells: Cells, model: AbstractModel, reacting) -> Cells:
+    upper = cells.upper
+    model_upper = jnp.broadcast_to(jnp.asarray(model.upper), (model.n_species,))
+    for i, name in enumerate(reacting):
+        row = cells.index(name)
+        upper = upper.at[row].min(model_upper[i])
+    return cells.replace(upper=upper)
+
+
+def _draws(rules) -> bool:
+    for rule in rules:
+        if any(isinstance(c, Chance) for c in rule.when):
+            return True
+        spread = getattr(rule.action, "spread", None)
+        if isinstance(rule.action, (Change, Divide)) and not (is_concrete(spread) and float(spread) == 0.0):
+            return True
+    return False
+
+
+__all__ = ["simulate_cells", "INFLUENCE_RADIUS"]

@@ -1,0 +1,266 @@
+"""The off-lattice cell simulator (thesis chapter 4) against the NumPy oracle in
+cells_oracle.py, exact invariants (mass, fixed cells, division counts and angles) and
+finite differences."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import morphojax as mj
+import morphojax.cells as mc
+from morphojax.cells._neighbours import find_neighbours
+
+from cells_oracle import from_cells, neighbours as brute_neighbours, step as oracle_step
+
+BARD = mj.Bard(alpha=16.0, beta=12.0, sp=0.01)
+
+
+def _scattered(n=40, seed=0, spread=12.0):
+    rng = np.random.default_rng(seed)
+    core = rng.uniform(-spread, spread, size=(n, 2))
+    far = np.array([[90.0, -40.0], [91.5, -40.5], [-70.0, 55.0]])  # far outliers widen the buckets
+    return np.concatenate([core, far])
+
+
+# ---- neighbours -------------------------------------------------------------------------
+@pytest.mark.parametrize("table, bucket", [(4096, 16), (64, 48)])  # buckets of side 3; widened to 23
+def test_neighbours_equal_a_brute_force_search(table, bucket):
+    pos = _scattered()
+    capacity = len(pos) + 5  # dead entries must never appear
+    padded = np.concatenate([pos, np.zeros((5, 2))])
+    index, overflow = find_neighbours(jnp.asarray(padded, jnp.float32), jnp.asarray(len(pos)), 3.0, 32, bucket, table)
+    assert not bool(overflow)
+    index = np.asarray(index)
+    expected = brute_neighbours(pos, 3.0)
+    for i in range(len(pos)):
+        found = sorted(int(j) for j in index[i] if j < capacity)
+        assert found == sorted(expected[i]), i
+    assert (index[len(pos):] == capacity).all()
+    _, crowded = find_neighbours(jnp.asarray(padded, jnp.float32), jnp.asarray(len(pos)), 3.0, 32, 4, 64)
+    assert bool(crowded), "a bucket holding more cells than bucket_size must be reported"
+
+
+def test_neighbour_overflow_is_reported_with_the_iteration():
+    cells = mc.cells_at(np.zeros((1, 2)), ("U",), capacity=40)
+    rules = [mc.Rule(mc.Divide(math.radians(137.5)), when=mc.Compare(mc.AGE, "==", 1))]
+    with pytest.raises(mj.SimulationError, match=r"neighbour search ran out of room at iteration \d+"):
+        mc.simulate_cells(None, cells, 40, rules=rules, max_neighbours=4)
+    out = mc.simulate_cells(None, cells, 40, rules=rules, max_neighbours=4, throw=False)
+    assert int(out.neighbour_overflow_step) > 0 and not bool(out.ok)
+
+
+# ---- one iteration against the oracle -------------------------------------------------------
+@pytest.fixture(scope="module")
+def mixed():
+    key = jax.random.key(3)
+    cells = mc.cell_grid((5, 6), ("U", "V"), lattice="hex", jitter=0.45, concentration=(4.0, 4.0), spread=(1.0, 1.0),
+                         diffusion=(0.05, 0.02), diffusion_spread=(0.02, 0.01), polarity=0.3, polarity_spread=3.0,
+                         anisotropic=("V",), upper=(None, 6.0), capacity=48, key=key)
+    rules = (
+        mc.Rule(mc.React(BARD, ("U", "V"))),
+        mc.Rule(mc.Map(mc.conc("V"), 2.0, 6.0, "M", 0.0, 1.0)),
+        mc.Rule(mc.Change(mc.conc("U"), mc.mapped("M")), when=mc.Compare(mc.conc("V"), ">", 4.0)),
+        mc.Rule(mc.Change(mc.diff("V"), -0.001), when=mc.Within(mc.AGE, 0, 2)),
+        mc.Rule(mc.Polarize("U"), when=mc.Compare(mc.NEIGHBORS, ">=", 5)),
+        mc.Rule(mc.Divide(0.7), when=(mc.Compare(mc.BIRTH, "==", 0), mc.Compare(mc.conc("U"), ">", 4.3)),
+                start=1, stop=2),
+    )
+    return cells, rules
+
+
+def _compare(cells, state, rtol=2e-4, atol=2e-4):
+    got = from_cells(cells)
+    assert got["pos"].shape == state["pos"].shape
+    np.testing.assert_allclose(got["pos"], state["pos"], rtol=rtol, atol=atol)
+    np.testing.assert_allclose(got["conc"], state["conc"], rtol=rtol, atol=atol)
+    np.testing.assert_allclose(got["rates"], state["rates"], rtol=rtol, atol=atol)
+    np.testing.assert_array_equal(got["polarised"], state["polarised"])
+    turn = np.angle(np.exp(1j * (got["angle"] - state["angle"])))
+    np.testing.assert_allclose(turn, 0.0, atol=1e-4)
+    np.testing.assert_array_equal(got["birth"], state["birth"])
+
+
+def test_iterations_match_the_numpy_oracle(mixed):
+    cells, rules = mixed
+    state = from_cells(cells)
+    dt = 0.5
+    for t in range(4):
+        cells = mc.simulate_cells(None, cells, 1, dt, rules=rules, domain=(24.0, 24.0), division_limit=5)
+        state = oracle_step(state, rules, t, dt, division_limit=5, box=(24.0, 24.0))
+        _compare(cells, state)
+    assert int(cells.count) > 30, "the case should exercise division"
+    assert int(cells.step) == 4
+
+
+def test_one_call_equals_resumed_calls(mixed):
+    cells, rules = mixed
+    whole = mc.simulate_cells(None, cells, 4, 0.5, rules=rules, domain=(24.0, 24.0), division_limit=5)
+    parts = cells
+    for _ in range(2):
+        parts = mc.simulate_cells(None, parts, 2, 0.5, rules=rules, domain=(24.0, 24.0), division_limit=5)
+    for a, b in zip(jax.tree_util.tree_leaves(whole), jax.tree_util.tree_leaves(parts)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+# ---- invariants -----------------------------------------------------------------------------
+@pytest.mark.parametrize("anisotropic", [(), ("R",)])
+def test_diffusion_conserves_every_reagent(anisotropic):
+    key = jax.random.key(7)
+    cells = mc.cell_grid((9, 11), ("R", "S"), lattice="hex", jitter=0.3, concentration=(5.0, 1.0), spread=(4.0, 1.0),
+                         diffusion=(0.1, 0.05), diffusion_spread=(0.09, 0.04), polarity=0.0, polarity_spread=3.1,
+                         anisotropic=anisotropic, key=key)
+    before = np.asarray(cells.concentration, np.float64).sum(axis=1)
+    out = mc.simulate_cells(None, cells, 60, 0.5)
+    after = np.asarray(out.concentration, np.float64).sum(axis=1)
+    np.testing.assert_allclose(after, before, rtol=2e-6)
+    assert np.asarray(out.concentration).std(axis=1)[0] < np.asarray(cells.concentration).std(axis=1)[0]
+
+
+def test_anisotropic_diffusion_follows_the_polarity():
+    """Eq. 4.8 on a square grid polarised along x: per unit time a cell's second moments
+    grow by sum_j w_j dx_j^2 (an exact identity of the linear exchange while no mass has
+    reached the border): w = D for the two neighbours along x, D / sqrt 2 for the four
+    diagonals, 0 for the two along y, and dx^2 = 4 (cells 2 apart)."""
+    D, steps = 0.1, 6
+    cells = mc.cell_grid((15, 15), ("R",), diffusion=D, polarity=0.0, anisotropic=("R",))
+    cells = cells.replace(concentration=cells.concentration.at[0, 7 * 15 + 7].set(1.0))
+    out = mc.simulate_cells(None, cells, steps, 1.0)
+    r, xy = np.asarray(out["R"], np.float64), np.asarray(out.position, np.float64)
+    var_x, var_y = (r * xy[:, 0] ** 2).sum(), (r * xy[:, 1] ** 2).sum()
+    diagonal = 4 * (D / math.sqrt(2)) * 4
+    assert var_x == pytest.approx(steps * (2 * D * 4 + diagonal), rel=1e-4)
+    assert var_y == pytest.approx(steps * diagonal, rel=1e-4)
+
+
+def test_collisions_relax_overlaps_and_spare_fixed_cells():
+    rng = np.random.default_rng(1)
+    pos = rng.uniform(-4.0, 4.0, size=(30, 2))
+    fixed = np.zeros(30, bool)
+    fixed[:3] = True
+    cells = mc.make_cells(("R",), pos, fixed=fixed)
+    out = mc.simulate_cells(None, cells, 300)
+    moved = out.live()["position"]
+    np.testing.assert_array_equal(moved[:3], np.asarray(cells.position)[:3])
+    gaps = np.linalg.norm(moved[:, None] - moved[None], axis=-1)
+    np.fill_diagonal(gaps, np.inf)
+    assert gaps.min() > 2.0 - 0.05
+    assert not np.allclose(moved[3:], np.asarray(cells.position)[3:])
+
+
+def test_packed_domain_holds_cells_inside_its_square():
+    cells = mc.cell_disc(9.0, ("R",), lattice="hex", capacity=200)
+    rules = [mc.Rule(mc.Divide(0.0), when=mc.Compare(mc.AGE, "==", 0), start=0, stop=0)]
+    out = mc.simulate_cells(None, cells, 10, rules=rules, domain="packed")
+    half = math.sqrt(mc.PACKING_AREA * int(out.count)) / 2
+    assert int(out.count) == 2 * int(cells.count)
+    assert np.abs(out.live()["position"]).max() <= half + 1e-5
+
+
+# ---- division ---------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def phyllotaxis():
+    """Listing A.5's growth: only a cell of age 1 divides, at 137.5 degrees (Fig. 6.3)."""
+    cells = mc.cells_at(np.zeros((1, 2)), ("U",), polarity=0.0, capacity=64)
+    rules = (mc.Rule(mc.Divide(math.radians(137.5)), when=mc.Compare(mc.AGE, "==", 1)),)
+    return cells, rules
+
+
+def test_division_counts_and_angles_follow_the_rule(phyllotaxis):
+    cells, rules = phyllotaxis
+    two = mc.simulate_cells(None, cells, 2, rules=rules)
+    assert int(two.count) == 2
+    child = two.live()
+    np.testing.assert_allclose(child["position"][1] - child["position"][0],
+                               [math.cos(math.radians(137.5)), math.sin(math.radians(137.5))], atol=1e-6)
+    assert child["birth"].tolist() == [0, 2]
+    out = mc.simulate_cells(None, cells, 41, rules=rules)
+    assert int(out.count) == 1 + 41 // 2  # one division every other iteration (5001 cells after 10000)
+    turns = np.degrees(out.live()["polarity"]) % 360
+    np.testing.assert_allclose(turns, (np.arange(int(out.count)) * 137.5) % 360, atol=1e-3)
+
+
+def test_capacity_overflow_is_reported_with_the_iteration(phyllotaxis):
+    cells, rules = phyllotaxis
+    small = cells.with_capacity(4)
+    with pytest.raises(mj.SimulationError, match="divisions at iteration 7 did not fit in the capacity of 4"):
+        mc.simulate_cells(None, small, 12, rules=rules)
+    out = mc.simulate_cells(None, small, 12, rules=rules, throw=False)
+    assert int(out.count) == 4 and int(out.overflow_step) == 7
+
+
+def test_division_limit_stops_crowded_cells():
+    cells = mc.cell_grid((5, 5), ("U",), capacity=60)
+    rules = [mc.Rule(mc.Divide(0.0), start=0, stop=0)]
+    out = mc.simulate_cells(None, cells, 1, rules=rules, division_limit=5)
+    neighbours = [len(x) for x in brute_neighbours(np.asarray(cells.position)[:25], 3.0)]
+    assert int(out.count) == 25 + sum(n <= 5 for n in neighbours) == 25 + 16
+
+
+# ---- randomness, transforms -----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def growing():
+    key = jax.random.key(11)
+    cells = mc.cell_grid((4, 5), ("U", "V"), lattice="hex", concentration=4.0, spread=1.0, diffusion=(0.08, 0.01),
+                         capacity=80, key=key)
+    rules = (mc.Rule(mc.Divide(0.0, math.pi), when=mc.Chance(0.05), start=2),)
+    return cells, rules
+
+
+def test_same_key_same_cells(growing):
+    cells, rules = growing
+    a = mc.simulate_cells(BARD, cells, 12, 0.5, rules=rules, key=jax.random.key(1))
+    b = mc.simulate_cells(BARD, cells, 12, 0.5, rules=rules, key=jax.random.key(1))
+    c = mc.simulate_cells(BARD, cells, 12, 0.5, rules=rules, key=jax.random.key(2))
+    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert int(a.count) > 20
+    assert not np.array_equal(np.asarray(a.position), np.asarray(c.position))
+
+
+def test_a_growing_run_under_jit_vmap_and_grad(growing):
+    cells, rules = growing
+    key = jax.random.key(1)
+
+    def final(sp):
+        out = mc.simulate_cells(mj.Bard(alpha=16.0, beta=12.0, sp=sp), cells, 12, 0.5, rules=rules, key=key)
+        return out
+
+    def loss(sp):
+        out = final(sp)
+        return jnp.sum(jnp.where(out.alive, out["V"], 0.0) ** 2) / 100
+
+    sps = jnp.asarray([0.005, 0.01, 0.02])
+    swept = jax.jit(jax.vmap(final))(sps)
+    one = final(0.01)
+    np.testing.assert_allclose(np.asarray(swept.concentration[1]), np.asarray(one.concentration), rtol=1e-5, atol=1e-5)
+    assert (np.asarray(swept.count) == int(one.count)).all()  # the draws do not depend on sp
+
+    grad = jax.grad(loss)(0.01)
+    h = 1e-3
+    fd = (loss(0.01 + h) - loss(0.01 - h)) / (2 * h)
+    assert float(grad) == pytest.approx(float(fd), rel=0.02)
+    assert abs(float(grad)) > 1e-3
+
+
+# ---- errors ---------------------------------------------------------------------------------
+def test_bad_inputs_name_the_parameter():
+    cells = mc.cell_grid((3, 3), ("U", "V"))
+    with pytest.raises(ValueError, match="dt must lie in"):
+        mc.simulate_cells(None, cells, 1, -1.0)
+    with pytest.raises(ValueError, match="names reagent 'W'"):
+        mc.simulate_cells(None, cells, 1, rules=[mc.Rule(mc.Change("W", 1.0))])
+    with pytest.raises(ValueError, match="key is required"):
+        mc.simulate_cells(None, cells, 1, rules=[mc.Rule(mc.Change("U", 1.0), when=mc.Chance(0.5))])
+    with pytest.raises(ValueError, match="Chance.probability must lie in"):
+        mc.Chance(1.5)
+    with pytest.raises(ValueError, match="before a Map defines it"):
+        mc.simulate_cells(None, cells, 1, rules=[mc.Rule(mc.Change("U", mc.mapped("X")))])
+    with pytest.raises(ValueError, match="capacity must be an integer >= the number of cells"):
+        cells.with_capacity(3)
+    with pytest.raises(ValueError, match="domain must be"):
+        mc.simulate_cells(None, cells, 1, domain="round")
