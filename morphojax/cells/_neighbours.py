@@ -10,13 +10,14 @@ algorithm in ~80 lines:
 1. the live cells' bounding box is cut into at most `table_size` square buckets of side
    `radius` (wider when the cells spread too far for that, so unbounded growth needs no
    box), and the cells are sorted by bucket;
-2. a cell's candidates are the cells of the 3 x 3 buckets around its own, at most
-   `bucket_size` per bucket; a candidate counts if it lies strictly within `radius`;
+2. a cell's candidates are the cells of the 3 x 3 buckets around its own: three runs of
+   three buckets, each read up to 3 x `bucket_size` cells; a candidate counts if it lies
+   strictly within `radius`;
 3. the neighbours are packed into `max_neighbours` slots per cell (unused slots hold the
    capacity, an index past every cell).
 
-Running out of room (a bucket with more than `bucket_size` cells, or a cell with more than
-`max_neighbours` neighbours) sets `overflow`: the simulator records the iteration, so a
+Running out of room (three buckets in a row holding more than 3 x `bucket_size` cells, or a
+cell with more than `max_neighbours` neighbours) sets `overflow`: the simulator records the iteration, so a
 missed neighbour is never silent.
 """
 
@@ -78,37 +79,57 @@ def find_neighbours(position: Array, count: Array, radius: float, max_neighbours
     capacity = position.shape[0]
     alive = jnp.arange(capacity) < count
     side_count = int(np.floor(np.sqrt(table_size)))  # buckets per side, at most
+    buckets = side_count * side_count
     low = jnp.min(jnp.where(alive[:, None], position, jnp.inf), axis=0)
     high = jnp.max(jnp.where(alive[:, None], position, -jnp.inf), axis=0)
     # buckets are squares of side >= radius; wider only when the cells spread so far that
     # side_count buckets of side `radius` would not span them
     side = jnp.maximum(radius, jnp.max(high - low) / (side_count - 1))
-    bucket = jnp.floor((position - low) / side).astype(jnp.int32)
-    slot = jnp.where(alive, bucket[:, 0] + side_count * bucket[:, 1], table_size)
+    bucket = jnp.clip(jnp.floor((position - low) / side).astype(jnp.int32), 0, side_count - 1)
+    slot = jnp.where(alive, bucket[:, 0] + side_count * bucket[:, 1], buckets)
     order = jnp.argsort(slot)
-    starts = jnp.searchsorted(slot[order], jnp.arange(table_size + 1), side="left").astype(jnp.int32)
-    bucket_overflow = jnp.max(starts[1:] - starts[:-1]) > bucket_size
+    # starts[k]: where the cells of bucket k begin in `order` (buckets row by row)
+    starts = jnp.concatenate([jnp.zeros(1, jnp.int32),
+                              jnp.cumsum(jnp.zeros(buckets + 1, jnp.int32).at[slot].add(1))])
 
-    wanted = bucket[:, None, :] + _OFFSETS[None]                      # (C, 9, 2)
-    inside = jnp.all((wanted >= 0) & (wanted < side_count), axis=-1)
-    wanted_slot = jnp.where(inside, wanted[..., 0] + side_count * wanted[..., 1], table_size)
-    first, end = starts[wanted_slot], starts[jnp.minimum(wanted_slot + 1, table_size)]
-    seat = first[..., None] + jnp.arange(bucket_size)                  # (C, 9, B)
-    candidate = order[jnp.minimum(seat, capacity - 1)]
-    gap = position[candidate] - position[:, None, None, :]
-    near = jnp.sum(gap * gap, axis=-1) < radius * radius
-    me = jnp.arange(capacity)[:, None, None]
-    valid = (seat < end[..., None]) & inside[..., None] & near & (candidate != me) & alive[:, None, None]
+    # the 3 x 3 buckets around a cell are three runs of consecutive buckets (one per row
+    # of buckets), so three contiguous stretches of `order`, each read up to `run` cells
+    run = 3 * bucket_size
+    row = bucket[:, 1:2] + jnp.arange(-1, 2)[None, :]                  # (C, 3)
+    row_inside = (row >= 0) & (row < side_count)
+    row = jnp.clip(row, 0, side_count - 1)
+    first = starts[jnp.maximum(bucket[:, 0:1] - 1, 0) + side_count * row]
+    end = starts[jnp.minimum(bucket[:, 0:1] + 1, side_count - 1) + side_count * row + 1]
+    end = jnp.where(row_inside, end, first)
+    crowded = jnp.any(end - first > run)
+    seat = (first[..., None] + jnp.arange(run)).reshape(capacity, -1)  # (C, 3 run)
+    # 1D takes in "clip" mode: several times faster on a CPU than gathering (x, y) rows
+    candidate = jnp.take(order, seat, mode="clip")
+    dx = jnp.take(position[:, 0], candidate, mode="clip") - position[:, 0:1]
+    dy = jnp.take(position[:, 1], candidate, mode="clip") - position[:, 1:2]
+    near = dx * dx + dy * dy < radius * radius
+    me = jnp.arange(capacity)[:, None]
+    valid = (seat < jnp.repeat(end, run, axis=1)) & near & (candidate != me) & alive[:, None]
 
-    valid = valid.reshape(capacity, -1)
-    candidate = candidate.reshape(capacity, -1)
-    rank = jnp.cumsum(valid, axis=1) - 1
-    target = jnp.where(valid & (rank < max_neighbours), rank, max_neighbours)
-    rows = jnp.arange(capacity)[:, None]
-    index = jnp.full((capacity, max_neighbours + 1), capacity, jnp.int32)
-    index = index.at[rows, target].set(candidate.astype(jnp.int32))[:, :max_neighbours]
-    overflow = bucket_overflow | jnp.any(jnp.sum(valid, axis=1) > max_neighbours)
+    # pack the valid candidates into max_neighbours slots (one flat scatter: the fastest
+    # compaction on a CPU, well ahead of a per-row sort or top_k)
+    rank = _row_cumsum(valid) - 1
+    column = jnp.where(valid & (rank < max_neighbours), rank, max_neighbours)
+    flat = (jnp.arange(capacity)[:, None] * (max_neighbours + 1) + column).ravel()
+    index = jnp.full(capacity * (max_neighbours + 1), capacity, jnp.int32)
+    index = index.at[flat].set(candidate.astype(jnp.int32).ravel(), mode="promise_in_bounds")
+    index = index.reshape(capacity, max_neighbours + 1)[:, :max_neighbours]
+    overflow = crowded | jnp.any(rank[:, -1] >= max_neighbours)
     return index, overflow
+
+
+def _row_cumsum(flags: Array) -> Array:
+    """Running count of True along each row, as a product with a triangular matrix: on a
+    CPU, twice as fast as `jnp.cumsum` (a reduce-window there); exact in float32 while
+    rows are shorter than 2**24."""
+    width = flags.shape[1]
+    triangle = jnp.triu(jnp.ones((width, width), jnp.float32))
+    return jnp.round(flags.astype(jnp.float32) @ triangle).astype(jnp.int32)
 
 
 def table_size_for(capacity: int) -> int:

@@ -47,14 +47,18 @@ class Settings(eqx.Module):
 
 
 class Contacts(eqx.Module):
-    """The neighbours of every cell this iteration: index (C, K), `near` (within the
-    influence radius), unit directions d / |d| and distances."""
+    """The neighbours of every cell this iteration, per slot of the neighbour list: the
+    index, `near` (a live neighbour within the influence radius), the offset (dx, dy) to
+    it, its distance and the unit direction (ux, uy). Coordinates are kept apart: (C, K)
+    arrays reduce several times faster on a CPU than (C, K, 2) ones."""
 
     index: Array
     near: Array
-    gap: Array
+    dx: Array
+    dy: Array
     distance: Array
-    unit: Array
+    ux: Array
+    uy: Array
 
     @property
     def count(self) -> Array:
@@ -65,12 +69,15 @@ def contacts(cells: Cells, neighbours: NeighbourList, radius: float) -> Contacts
     index = neighbours.index
     capacity = cells.capacity
     safe = jnp.minimum(index, capacity - 1)
-    gap = cells.position[safe] - cells.position[:, None, :]
-    squared = jnp.sum(gap * gap, axis=-1)
+    x, y = cells.position[:, 0], cells.position[:, 1]
+    dx = jnp.take(x, safe, mode="clip") - x[:, None]
+    dy = jnp.take(y, safe, mode="clip") - y[:, None]
+    squared = dx * dx + dy * dy
     near = (index < capacity) & (squared < radius * radius) & cells.alive[:, None]
-    distance = jnp.sqrt(jnp.where(near & (squared > 0), squared, 1.0))
-    unit = jnp.where((near & (squared > 0))[..., None], gap / distance[..., None], 0.0)
-    return Contacts(safe, near, gap, distance, unit)
+    apart = near & (squared > 0)
+    distance = jnp.sqrt(jnp.where(apart, squared, 1.0))
+    ux, uy = jnp.where(apart, dx / distance, 0.0), jnp.where(apart, dy / distance, 0.0)
+    return Contacts(safe, near, dx, dy, distance, ux, uy)
 
 
 # ---- rules ------------------------------------------------------------------------
@@ -123,8 +130,8 @@ def _holds(condition, value, key: Array, capacity: int) -> Array:
 def _gradient(cells: Cells, touch: Contacts, name: str) -> Array:
     """Eq. 4.10: sum_j (R_j - R_i) d_j / |d_j|, per cell (C, 2)."""
     r = cells[name]
-    step = jnp.where(touch.near, r[touch.index] - r[:, None], 0.0)
-    return jnp.sum(step[..., None] * touch.unit, axis=1)
+    rise = jnp.where(touch.near, jnp.take(r, touch.index, mode="clip") - r[:, None], 0.0)
+    return jnp.stack([jnp.sum(rise * touch.ux, axis=1), jnp.sum(rise * touch.uy, axis=1)], axis=1)
 
 
 def apply_rules(rules: tuple[Rule, ...], cells: Cells, touch: Contacts, iteration: Array, dt: Array,
@@ -194,13 +201,13 @@ def diffusion_change(cells: Cells, touch: Contacts, dt: Array) -> Array:
     """dt sum_j D_ij (R_j - R_i) per reagent and cell (eqs. 4.7-4.8), shape (species, C)."""
     idx = touch.index
     rate_i = jnp.broadcast_to(cells.diffusion[:, :, None], (cells.n_species,) + idx.shape)
-    rate_j = cells.diffusion[:, idx]
+    rate_j = jnp.take(cells.diffusion, idx, axis=1, mode="clip")
     if any(cells.anisotropic):
-        direction = jnp.stack([jnp.cos(cells.polarity), jnp.sin(cells.polarity)], axis=1)
-        align_i = jnp.abs(jnp.sum(touch.unit * direction[:, None, :], axis=-1))
-        align_j = jnp.abs(jnp.sum(touch.unit * direction[idx], axis=-1))
+        px, py = jnp.cos(cells.polarity), jnp.sin(cells.polarity)
+        align_i = jnp.abs(touch.ux * px[:, None] + touch.uy * py[:, None])
+        align_j = jnp.abs(touch.ux * jnp.take(px, idx, mode="clip") + touch.uy * jnp.take(py, idx, mode="clip"))
         align_i = jnp.where(cells.polarised[:, None], align_i, 1.0)
-        align_j = jnp.where(cells.polarised[idx], align_j, 1.0)
+        align_j = jnp.where(jnp.take(cells.polarised, idx, mode="clip"), align_j, 1.0)
         steer = jnp.asarray(cells.anisotropic)[:, None, None]
         rate_i = jnp.where(steer, rate_i * align_i, rate_i)
         rate_j = jnp.where(steer, rate_j * align_j, rate_j)
@@ -208,15 +215,15 @@ def diffusion_change(cells: Cells, touch: Contacts, dt: Array) -> Array:
     positive = total > 0
     combined = jnp.where(positive, 2 * rate_i * rate_j / jnp.where(positive, total, 1.0), 0.0)
     r = cells.concentration
-    exchange = jnp.where(touch.near, combined * (r[:, idx] - r[:, :, None]), 0.0)
+    exchange = jnp.where(touch.near, combined * (jnp.take(r, idx, axis=1, mode="clip") - r[:, :, None]), 0.0)
     return dt * jnp.sum(exchange, axis=-1)
 
 
 def collision_offset(cells: Cells, touch: Contacts) -> Array:
     """Eq. 4.9: o_i = sum_j (0.25 - 0.5 / |d_j|) d_j for 0 < |d_j| < 2; zero for fixed cells."""
-    overlap = touch.near & (touch.distance < CONTACT) & (jnp.sum(touch.gap ** 2, axis=-1) > 0)
+    overlap = touch.near & (touch.distance < CONTACT) & ((touch.dx != 0) | (touch.dy != 0))
     weight = jnp.where(overlap, 0.25 - 0.5 / touch.distance, 0.0)
-    offset = jnp.sum(weight[..., None] * touch.gap, axis=1)
+    offset = jnp.stack([jnp.sum(weight * touch.dx, axis=1), jnp.sum(weight * touch.dy, axis=1)], axis=1)
     return jnp.where((cells.fixed | ~cells.alive)[:, None], 0.0, offset)
 
 
