@@ -74,7 +74,8 @@ from .automata import (
 )
 from .potts import Potts, PottsState, potts_blob, potts_image, type_clusters
 from . import cells
-from .cells import Cells, cell_disc, cell_grid, cells_at, simulate_cells
+from .cells import (Cells, Listing, cell_disc, cell_grid, cells_at, cells_texture, load_cells, load_listing, render_cells,
+                    save_cells, simulate_cells, write_cells_svg)
 
 from ._version import __version__
 
@@ -186,6 +187,13 @@ __all__ = [
     "YoungCA",
     "Potts",
     "Cells",
+    "cells_texture",
+    "render_cells",
+    "write_cells_svg",
+    "Listing",
+    "load_cells",
+    "load_listing",
+    "save_cells",
     "cell_disc",
     "cell_grid",
     "cells",

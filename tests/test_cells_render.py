@@ -12,7 +12,7 @@ from morphojax._render import colormap_table
 from morphojax.cells import cell_grid, make_cells
 from morphojax.cells._render import (
     cells_field,
-    cells_image,
+    render_cells,
     cells_texture,
     texture_pixel_centres,
     write_cells_svg,
@@ -55,12 +55,12 @@ def _brute_nearest(points, queries):
 # ---- discs and Voronoi tiles -------------------------------------------------------------
 def test_disc_colours_at_cell_centres_follow_the_colour_map():
     cells, xy, u = _grid(lambda x, y: np.sin(x) + 0.3 * y)
-    image = np.asarray(cells_image(cells, size=160, cmap="viridis"))
+    image = np.asarray(render_cells(cells, size=160, cmap="viridis"))
     assert image.shape == (120, 160, 3)  # box 16 x 12 cell radii (centres +- radius + margin)
     row, col = _fitted_pixel(xy, (-8, -6), (8, 6), 160, 120)
     np.testing.assert_array_equal(image[row, col], _oracle_colours(u, "viridis"))
     # a fixed range and the second reagent, by name
-    image = np.asarray(cells_image(cells, "v", size=160, cmap="gray", vmin=-1.0, vmax=0.5))
+    image = np.asarray(render_cells(cells, "v", size=160, cmap="gray", vmin=-1.0, vmax=0.5))
     np.testing.assert_array_equal(image[row, col], _oracle_colours(-u, "gray", -1.0, 0.5))
 
 
@@ -72,9 +72,9 @@ def test_between_cells_discs_leave_background_and_voronoi_fills_from_the_nearest
     near, distance = _brute_nearest(xy, probes)
     assert (distance > 1.05).all() and (distance < 1.45).all()
     row, col = _fitted_pixel(probes, (-8, -6), (8, 6), 320, 240)
-    discs = np.asarray(cells_image(cells, size=size, background=(0, 0, 255)))
+    discs = np.asarray(render_cells(cells, size=size, background=(0, 0, 255)))
     np.testing.assert_array_equal(discs[row, col], [[0, 0, 255]] * 3)
-    voronoi = np.asarray(cells_image(cells, size=size, style="voronoi", background=(0, 0, 255)))
+    voronoi = np.asarray(render_cells(cells, size=size, style="voronoi", background=(0, 0, 255)))
     np.testing.assert_array_equal(voronoi[row, col], _oracle_colours(u, "inferno")[near])
     # far from every cell (the margin) both stay background
     assert (discs[:5] == [0, 0, 255]).all() and (voronoi[:5] == [0, 0, 255]).all()
@@ -97,7 +97,7 @@ def test_every_pixel_takes_its_nearest_cell_within_reach():
     near, distance = _brute_nearest(xy, pixels)
     colours = _oracle_colours(u, "inferno")
     for style, reach in (("discs", 1.0), ("voronoi", 1.5)):
-        image = np.asarray(cells_image(cells, size=width, style=style)).reshape(-1, 3)
+        image = np.asarray(render_cells(cells, size=width, style=style)).reshape(-1, 3)
         expected = np.where((distance <= reach)[:, None], colours[near], 0)
         clear = np.abs(distance - reach) > 1e-6  # leave pixels exactly at the reach alone
         np.testing.assert_array_equal(image[clear], expected[clear])
@@ -106,7 +106,7 @@ def test_every_pixel_takes_its_nearest_cell_within_reach():
 def test_y_points_up():
     """The cell with the largest value sits at the top (largest y): it lands in the top rows."""
     cells, xy, u = _grid(lambda x, y: np.where(y == y.max(), 1.0, 0.0) + 0 * x)
-    image = np.asarray(cells_image(cells, size=160, cmap="gray"))
+    image = np.asarray(render_cells(cells, size=160, cmap="gray"))
     bright = np.argwhere((image == 255).all(-1))
     assert bright[:, 0].max() < 40  # the top third of 120 rows
     top, bottom = image[: 60], image[60:]
@@ -118,13 +118,13 @@ def test_y_points_up():
 
 def test_aspect_ratio_is_kept():
     cells, xy, _ = _grid()  # box 16 x 12 cell radii
-    assert cells_image(cells, size=100).size == (100, 75)
-    assert cells_image(cells, size=100, margin=0.0).size == (100, 71)  # 14 x 10: 100 x 71.4
+    assert render_cells(cells, size=100).size == (100, 75)
+    assert render_cells(cells, size=100, margin=0.0).size == (100, 71)  # 14 x 10: 100 x 71.4
     tall, _, _ = _grid(shape=(7, 3))  # box 8 x 16
-    assert cells_image(tall, size=160).size == (80, 160)
+    assert render_cells(tall, size=160).size == (80, 160)
     # a wide frame letterboxes the same picture: 10 pixels per cell radius both ways
-    snug = np.asarray(cells_image(cells, size=160, background="white"))
-    wide = np.asarray(cells_image(cells, size=(400, 120), background="white"))
+    snug = np.asarray(render_cells(cells, size=160, background="white"))
+    wide = np.asarray(render_cells(cells, size=(400, 120), background="white"))
     assert wide.shape == (120, 400, 3)
     np.testing.assert_array_equal(wide[:, 120:280], snug)
     assert (wide[:, :120] == 255).all() and (wide[:, 280:] == 255).all()
@@ -134,22 +134,22 @@ def test_dead_cells_are_not_drawn():
     cells, _, _ = _grid()
     roomy, _, _ = _grid(capacity=60)  # 25 unused entries at the origin, concentration 0
     for style in ("discs", "voronoi"):
-        np.testing.assert_array_equal(np.asarray(cells_image(cells, size=64, style=style)),
-                                      np.asarray(cells_image(roomy, size=64, style=style)))
+        np.testing.assert_array_equal(np.asarray(render_cells(cells, size=64, style=style)),
+                                      np.asarray(render_cells(roomy, size=64, style=style)))
     np.testing.assert_array_equal(cells_field(cells, size=40), cells_field(roomy, size=40))
 
 
 def test_polarity_segments_point_along_the_angle_with_y_up():
     xy = np.array([[0.0, 0.0], [6.0, 0.0]])
     cells = make_cells(("u",), xy, concentration=[[0.0, 0.0]], polarity=[math.pi / 2, np.nan])
-    image = np.asarray(cells_image(cells, size=(200, 100), polarity=True, polarity_colour=(0, 255, 0), margin=0.0))
+    image = np.asarray(render_cells(cells, size=(200, 100), polarity=True, polarity_colour=(0, 255, 0), margin=0.0))
     green = (image == [0, 255, 0]).all(-1)
     # the box x in [-1, 7], y in [-1, 1] fills 200 x 50 of 200 x 100: 25 pixels per cell radius
     row, col = _fitted_pixel(xy, (-1, -1), (7, 1), 200, 100)
     assert green[row[0] - 22:row[0], col[0]].all()  # up the image, from the centre to the rim
     assert not green[row[0] + 3:, :].any() and not green[:row[0] - 28, :].any()
     assert not green[:, col[0] + 6:].any()  # the unpolarised cell has no segment
-    plain = np.asarray(cells_image(cells, size=(200, 100), margin=0.0))
+    plain = np.asarray(render_cells(cells, size=(200, 100), margin=0.0))
     assert not (plain == [0, 255, 0]).all(-1).any()
 
 
@@ -302,33 +302,33 @@ def test_svg_replaces_the_file_whole_and_leaves_no_temporaries(tmp_path):
 def test_errors_name_the_parameter_and_the_allowed_values(tmp_path):
     cells, _, _ = _grid()
     with pytest.raises(ValueError, match=r"unknown reagent 'w'; the cells carry u, v"):
-        cells_image(cells, "w")
+        render_cells(cells, "w")
     with pytest.raises(ValueError, match=r"reagent must be one of u, v or an index in \[0, 1\]"):
         cells_field(cells, 2)
     with pytest.raises(ValueError, match="reagent must be"):
-        cells_image(cells, True)
+        render_cells(cells, True)
     empty = make_cells(("u",), np.zeros((0, 2)), capacity=4)
-    for draw in (cells_image, cells_field, cells_texture):
+    for draw in (render_cells, cells_field, cells_texture):
         with pytest.raises(ValueError, match="at least one live cell"):
             draw(empty)
     with pytest.raises(ValueError, match="at least one live cell"):
         write_cells_svg(empty, tmp_path / "x.svg")
     for size in (0, -3, 20000, (10,), (10, 0), (10, 2.5), True, 12.0, "big"):
         with pytest.raises(ValueError, match=r"size must be .* in \[1, 16384\]"):
-            cells_image(cells, size=size)
+            render_cells(cells, size=size)
         with pytest.raises(ValueError, match="size must be"):
             cells_field(cells, size=size)
     with pytest.raises(ValueError, match=r"unknown style 'hex'; allowed: 'discs', 'voronoi'"):
-        cells_image(cells, style="hex")
+        render_cells(cells, style="hex")
     with pytest.raises(ValueError, match=r"unknown method 'cubic'; allowed: 'linear', 'nearest', 'natural'"):
         cells_texture(cells, method="cubic")
     with pytest.raises(ValueError, match=r"margin must lie in \[0"):
-        cells_image(cells, margin=-1.0)
+        render_cells(cells, margin=-1.0)
     with pytest.raises(ValueError, match="unknown colour map"):
-        cells_image(cells, cmap="rainbow")
+        render_cells(cells, cmap="rainbow")
     with pytest.raises(ValueError, match="vmax must be >= vmin"):
         cells_texture(cells, vmin=2.0, vmax=1.0)
     with pytest.raises(ValueError, match="unknown colour"):
-        cells_image(cells, background="no-such-colour")
+        render_cells(cells, background="no-such-colour")
     with pytest.raises(ValueError, match="texture_pixel_centres needs"):
         texture_pixel_centres(np.zeros((0, 2)))

@@ -24,3 +24,6 @@ from ._rules import (
 from ._space import PACKING_AREA, Box, Packed
 from ._state import Cells, concatenate, make_cells
 from ._simulate import INFLUENCE_RADIUS, simulate_cells
+from ._files import load_cells, save_cells
+from ._listing import LISTINGS, Listing, ListingError, listing_path, load_listing
+from ._render import cells_field, cells_texture, render_cells, texture_pixel_centres, write_cells_svg

@@ -292,7 +292,8 @@ class Listing:
         return builder.cells()
 
     # ---- running ------------------------------------------------------------------
-    def run(self, seed: int | None = None, steps: int | None = None, capacity: int | None = None, key=None) -> Cells:
+    def run(self, seed: int | None = None, steps: int | None = None, capacity: int | None = None, key=None,
+            max_neighbours: int | None = None, bucket_size: int | None = None) -> Cells:
         """Place the prepattern and simulate the listing (`simulate_cells`, thesis ch. 4).
 
         Args:
@@ -301,15 +302,18 @@ class Listing:
             steps: iterations (default: `self.steps`, from `stop at` or `snap ... then
                 exit`; a listing with neither needs it).
             capacity: room for cells. Default: the prepattern's count when no rule
-                divides; otherwise an estimate, max(4 * count, count + steps // 2), and
-                if divisions overflow it the run is repeated with twice the capacity, up
-                to 3 times (a capacity you pass is used as given).
+                divides; otherwise an estimate, max(4 * count, count + steps // 2).
             key: a `jax.random` key (split between the prepattern and the run).
+            max_neighbours, bucket_size: room in the neighbour search (defaults of
+                `simulate_cells`).
 
-        Raises SimulationError when the run blows up, overflows the capacity or the
-        neighbour search.
+        A listing runs as published, whatever room it needs: when the divisions overflow
+        a capacity you did not give, or the neighbour search overflows room you did not
+        give, the run is repeated with twice that room, up to 3 times.
+
+        Raises SimulationError when the run blows up or still overflows.
         """
-        from ._simulate import simulate_cells
+        from ._simulate import BUCKET_SIZE, MAX_NEIGHBOURS, simulate_cells
 
         steps = self.steps if steps is None else steps
         if steps is None:
@@ -321,17 +325,24 @@ class Listing:
         cells = self.prepattern(prepattern_key)
         count = int(cells.count)
         divides = any(isinstance(rule.action, Divide) for rule in self.rules)
-        retries = 3 if capacity is None and divides else 0
+        grow_cells, grow_search = capacity is None and divides, max_neighbours is None and bucket_size is None
         if capacity is None:
             capacity = max(4 * count, count + int(steps) // 2) if divides else count
-        for attempt in range(retries + 1):
+        room = [MAX_NEIGHBOURS if max_neighbours is None else max_neighbours,
+                BUCKET_SIZE if bucket_size is None else bucket_size]
+        for attempt in range(4):
             out = simulate_cells(
                 None, cells.with_capacity(int(capacity)), steps, self.dt, rules=self.rules, key=run_key,
-                domain=self.domain, division_limit=self.division_limit, throw=False,
+                domain=self.domain, division_limit=self.division_limit, max_neighbours=room[0],
+                bucket_size=room[1], throw=False,
             )
-            if int(out.overflow_step) < 0 or attempt == retries:
+            retry = False
+            if grow_cells and int(out.overflow_step) >= 0:
+                capacity, retry = 2 * capacity, True  # the divisions did not fit: twice the room
+            if grow_search and int(out.neighbour_overflow_step) >= 0:
+                room, retry = [2 * room[0], 2 * room[1]], True
+            if not retry or attempt == 3 or int(out.nonfinite_step) >= 0:
                 break
-            capacity *= 2  # the divisions did not fit: run again with twice the room
         if not bool(out.ok):
             raise SimulationError(f"{self.name}: {out.message()}")
         return out

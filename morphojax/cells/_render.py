@@ -8,7 +8,7 @@ onto a high-resolution texture with natural-neighbour coordinates (CGAL 4.9, sec
 
 Geometry shared by every picture: lengths are cell radii and every cell has radius 1
 (thesis 4.4); +y is up, so row 0 of an image holds the largest y. The pictures of the
-cells (`cells_image`, `write_cells_svg`) frame the live cells' bounding box grown by the
+cells (`render_cells`, `write_cells_svg`) frame the live cells' bounding box grown by the
 cell radius and a `margin`, keeping the aspect ratio; the textures (`cells_field`,
 `cells_texture`) cover the box grown by the cell radius alone (the tissue's extent), whose
 aspect ratio a `size` of (width, height) may stretch, as a texture mapped onto a model is.
@@ -142,7 +142,7 @@ def texture_pixel_centres(cells, size=512) -> np.ndarray:
 
 
 # ---- cells as discs or Voronoi tiles ---------------------------------------------------------
-def cells_image(cells: Cells, reagent=None, *, size=512, style: str = "discs", cmap="inferno", vmin=None,
+def render_cells(cells: Cells, reagent=None, *, size=512, style: str = "discs", cmap="inferno", vmin=None,
                 vmax=None, background="black", polarity: bool = False, polarity_colour="white",
                 margin: float = 1.0) -> Image.Image:
     """The live cells as a picture, coloured by one reagent (thesis 4.7, Fig. 4.3).
@@ -169,7 +169,7 @@ def cells_image(cells: Cells, reagent=None, *, size=512, style: str = "discs", c
     """
     check_choice(style, "style", STYLES)
     check_range(margin, "margin", low=0.0)
-    live, values = _live(cells, reagent, "cells_image")
+    live, values = _live(cells, reagent, "render_cells")
     position = live["position"]
     low, high = _box(position, CELL_RADIUS + float(margin))
     fit = _Fit(low, high, *_image_size(size, *(high - low)))
@@ -230,7 +230,7 @@ def cells_texture(cells: Cells, reagent=None, *, size=512, cmap="inferno", vmin=
                   method: str = "linear") -> Image.Image:
     """`cells_field` through a colour map: the thesis's interpolated texture (4.6, `texture
     size`; Figs. 7.16-7.19). The range [vmin, vmax] defaults to the live cells' values, so
-    the texture's colours match `cells_image`'s."""
+    the texture's colours match `render_cells`'s."""
     live, values = _live(cells, reagent, "cells_texture")
     return to_image(_field(live["position"], values, size, method), cmap, *_value_range(values, vmin, vmax))
 
@@ -430,7 +430,7 @@ def _members(keys, sorted_keys) -> np.ndarray:
 def write_cells_svg(cells: Cells, path, reagent=None, *, cmap="inferno", vmin=None, vmax=None, polarity: bool = False,
                     polarity_colour="white", background=None, margin: float = 1.0) -> Path:
     """Write the live cells as SVG (thesis 4.6's vector export): one `<circle>` of radius 1
-    per live cell, filled with its colour (as `cells_image`), in cell radii with y flipped
+    per live cell, filled with its colour (as `render_cells`), in cell radii with y flipped
     so +y is up, the viewBox framing the cells' discs plus `margin`. `polarity` adds a
     `<line>` from each polarised cell's centre to its rim; `background` (a colour, default
     none) fills the view. Written atomically: a crash never leaves a broken file in place
@@ -470,4 +470,4 @@ def _hex(rgb) -> str:
     return "#{:02x}{:02x}{:02x}".format(*(int(v) for v in rgb))
 
 
-__all__ = ["cells_field", "cells_image", "cells_texture", "texture_pixel_centres", "write_cells_svg"]
+__all__ = ["cells_field", "render_cells", "cells_texture", "texture_pixel_centres", "write_cells_svg"]

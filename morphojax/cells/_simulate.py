@@ -20,6 +20,8 @@ from ._step import Settings, step
 
 INFLUENCE_RADIUS = 3.0  # thesis 4.2: the six hexagonal or eight Moore neighbours of unit-radius cells
 SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move of 0.15
+MAX_NEIGHBOURS = 20  # a packed or hexagonal tissue has 6-12 cells within 3.3; crowded growth more
+BUCKET_SIZE = 8  # cells per bucket of side 3.3 (a packed tissue averages 3.4)
 
 
 def simulate_cells(
@@ -34,8 +36,8 @@ def simulate_cells(
     domain=None,
     division_limit: int | None = None,
     influence_radius: float = INFLUENCE_RADIUS,
-    max_neighbours: int = 32,
-    bucket_size: int = 16,
+    max_neighbours: int = MAX_NEIGHBOURS,
+    bucket_size: int = BUCKET_SIZE,
     throw: bool = True,
 ) -> Cells:
     """Run `steps` iterations of the thesis's cell simulator (chapter 4).
