@@ -12,19 +12,9 @@ from morphojax._status import SimulationError
 from morphojax import Bard, Gradient
 from morphojax.cells import AGE, NEIGHBORS, Always, Box, Chance, Change, Compare, Divide, Map, Packed, Polarize, React, Within
 from morphojax.cells import conc, diff, mapped
-from morphojax.cells._listing import (
-    LISTING_DIR,
-    LISTINGS,
-    Create,
-    SetCells,
-    Snap,
-    UseChemical,
-    UsePolarity,
-    listing_path,
-    load_listing,
-    rule_key,
-    same_rules,
-)
+from morphojax.cells._listing import LISTING_DIR, LISTINGS, listing_path, load_listing
+from morphojax.cells._listing_commands import Create, SetCells, Snap, UseChemical, UsePolarity
+from morphojax.cells._listing_write import rule_key, same_rules
 
 SHIPPED = sorted(LISTING_DIR.glob("*.txt"))
 

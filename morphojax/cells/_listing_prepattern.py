@@ -1,0 +1,146 @@
+"""The prepattern of a listing (thesis 4.8.2-4.8.4): `_Prepattern` executes the `use`,
+`create` and `set` commands in order on NumPy arrays of the cells placed so far (the `use`
+defaults apply to later `create`s; `set` replaces values of cells already created) and
+makes the initial `Cells`. `Listing.prepattern` drives it, one key per command.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
+
+import jax
+import numpy as np
+
+from ._listing_commands import Create, SetCells, UseChemical, UsePolarity
+from ._listing_tokens import ListingError
+from ._prepattern import SPACING, cells_at, disc_positions, grid_positions
+from ._state import Cells, make_cells
+
+if TYPE_CHECKING:
+    from ._listing import Listing
+
+
+class _Prepattern:
+    """The cells placed so far (NumPy arrays of the live cells) and the `use` defaults."""
+
+    def __init__(self, listing: Listing):
+        self.listing = listing
+        self.species = listing.species
+        s = len(self.species)
+        self.defaults = {"conc": np.zeros(s), "conc_dev": np.zeros(s), "diff": np.zeros(s), "diff_dev": np.zeros(s)}
+        self.polarity: tuple[float | None, float] = (0.0, 0.0)  # radians: polarised along +x by default
+        self.position = np.zeros((0, 2))
+        self.concentration = np.zeros((s, 0))
+        self.diffusion = np.zeros((s, 0))
+        self.angle = np.zeros(0)
+        self.polarised = np.zeros(0, bool)
+        self.fixed = np.zeros(0, bool)
+
+    def fail(self, line: int, message: str) -> NoReturn:
+        raise ListingError.at(self.listing.name, self.listing.text.splitlines(), line, message)
+
+    def execute(self, command, key) -> None:
+        if isinstance(command, UseChemical):
+            row = self.species.index(command.chemical)
+            for part in ("conc", "diff"):
+                given = getattr(command, part)
+                if given is not None:
+                    self.defaults[part][row], self.defaults[f"{part}_dev"][row] = given
+        elif isinstance(command, UsePolarity):
+            angle = None if command.angle is None else math.radians(command.angle)
+            self.polarity = (angle, math.radians(command.dev))
+        elif isinstance(command, Create):
+            self.create(command, key)
+        elif isinstance(command, SetCells):
+            self.set(command, key)
+        else:
+            raise ValueError(f"unknown prepattern command {command!r}")
+
+    def create(self, command: Create, key) -> None:
+        angle, angle_dev = self.polarity
+        group = cells_at(
+            self.positions(command), self.species,
+            concentration=self.defaults["conc"], spread=self.defaults["conc_dev"],
+            diffusion=self.defaults["diff"], diffusion_spread=self.defaults["diff_dev"],
+            polarity=angle, polarity_spread=angle_dev if angle is not None else 0.0,
+            jitter=command.dev, fixed=command.fixed, key=key,
+        ).live()
+        self.position = np.concatenate([self.position, group["position"]])
+        self.concentration = np.concatenate([self.concentration, group["concentration"]], axis=1)
+        self.diffusion = np.concatenate([self.diffusion, group["diffusion"]], axis=1)
+        self.angle = np.concatenate([self.angle, group["polarity"]])
+        self.polarised = np.concatenate([self.polarised, group["polarised"]])
+        self.fixed = np.concatenate([self.fixed, group["fixed"]])
+
+    def positions(self, command: Create) -> np.ndarray:
+        if command.kind == "cell":
+            return np.array([command.size], float)
+        lattice = "hex" if command.kind.startswith("hex") else "square"
+        if command.kind.endswith("grid"):
+            cols, rows = command.size
+            return grid_positions((rows, cols), lattice, at=command.at)
+        if command.kind.endswith("circle"):
+            return disc_positions(command.size[0], lattice, at=command.at)
+        return self.shape_positions(command)
+
+    def shape_positions(self, command: Create) -> np.ndarray:
+        """Every letter of the file a cell of a square grid (4.8.3): the file's first row
+        is the top one; cells are numbered from the lowest row up, left to right, and the
+        letters' bounding box is centred on `at`."""
+        directory = self.listing.directory or Path.cwd()
+        path = Path(command.file) if Path(command.file).is_absolute() else directory / command.file
+        try:
+            rows = path.read_text().splitlines()
+        except OSError as err:
+            self.fail(command.line, f"cannot read the shape file {str(path)!r} ({err.strerror or err})")
+        cells = [(-r, c) for r, text in enumerate(rows) for c, ch in enumerate(text) if ch.isalpha()]
+        if not cells:
+            self.fail(command.line, f"the shape file {str(path)!r} holds no letter (each letter is a cell)")
+        cells.sort()  # lowest row first (y = -row), then left to right
+        xy = np.array([(c * SPACING, y * SPACING) for y, c in cells], float)
+        xy -= (xy.min(axis=0) + xy.max(axis=0)) / 2
+        return xy + np.asarray(command.at, float)
+
+    def set(self, command: SetCells, key) -> None:
+        n = self.position.shape[0]
+        if command.last >= n:
+            where = f"cells 0 to {n - 1}" if n else "no cells"
+            wanted = f"cell {command.first}" if command.first == command.last else f"cells {command.first} to {command.last}"
+            self.fail(command.line, f"{wanted} out of range: the cells created before this line are {where}")
+        cells = slice(command.first, command.last + 1)
+        m = command.last + 1 - command.first
+        conc_key, diff_key, polarity_key = jax.random.split(key, 3)
+        if command.chemical is not None:
+            row = self.species.index(command.chemical)
+            if command.conc is not None:
+                self.concentration[row, cells] = command.conc[0] + _uniform(conc_key, m, command.conc[1])
+            if command.diff is not None:
+                rates = command.diff[0] + _uniform(diff_key, m, command.diff[1])
+                self.diffusion[row, cells] = np.maximum(rates, 0.0)  # rates are kept >= 0, as cells_at does
+        if command.polarity == "none":
+            self.polarised[cells] = False
+        elif command.polarity is not None:
+            spread = math.radians(command.polarity_dev)
+            self.angle[cells] = math.radians(command.polarity) + _uniform(polarity_key, m, spread)
+            self.polarised[cells] = True
+        if command.fixed:
+            self.fixed[cells] = True
+
+    def cells(self) -> Cells:
+        if self.position.shape[0] == 0:
+            raise ValueError(f"{self.listing.name}: the listing creates no cells (no 'create' line)")
+        return make_cells(
+            self.species, self.position, concentration=self.concentration, diffusion=self.diffusion,
+            polarity=self.angle, polarised=self.polarised, fixed=self.fixed,
+            upper=[c.limit for c in self.listing.chemicals],
+            anisotropic=tuple(c.anisotropic for c in self.listing.chemicals),
+        )
+
+
+def _uniform(key, n: int, amplitude: float) -> np.ndarray:
+    """n draws from [-amplitude, amplitude] (zeros without drawing when amplitude is 0)."""
+    if amplitude <= 0:
+        return np.zeros(n)
+    return np.asarray(jax.random.uniform(key, (n,), minval=-1.0, maxval=1.0), float) * amplitude
