@@ -3,6 +3,8 @@
     morphojax presets | run NAME | resume CKPT | render RESULT    (`_run`)
     morphojax sweep ...                                          (`_sweep`)
     morphojax ca ...                                             (`_ca`)
+    morphojax mesh ...                                           (`_mesh`)
+    morphojax listing FILE                                       (`_listing`)
 
 Other packages add subcommands through the entry-point group `morphojax.commands`: each
 entry is a function `register(subparsers)` that adds its parser and sets `func` (e.g.
@@ -15,10 +17,10 @@ import argparse
 import sys
 from importlib.metadata import entry_points
 
-from . import _ca, _mesh, _run, _sweep
+from . import _ca, _listing, _mesh, _run, _sweep
 
 ENTRY_POINT_GROUP = "morphojax.commands"
-CORE_COMMANDS = (_run.register, _sweep.register, _ca.register, _mesh.register)
+CORE_COMMANDS = (_run.register, _sweep.register, _ca.register, _mesh.register, _listing.register)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -134,7 +134,7 @@ def _run_reaction_diffusion(item, args, out: Path):
 
 
 RUNNERS = {"reaction-diffusion": _run_reaction_diffusion, "automaton": _run_automaton,
-           "potts": _run_automaton}  # by Preset.kind
+           "potts": _run_automaton, "cells": _run_automaton}  # by Preset.kind
 
 
 def _run_one(exp, args, npz: Path, resume=None):
@@ -262,6 +262,10 @@ def _cmd_render(args):
 
         potts_picture(args.result, args.scale).save(out)
         return 0
+    if kind == "cells":
+        cells, _ = mj.load_cells(args.result)
+        mj.render_cells(cells, args.species, cmap=args.cmap or "inferno").save(out)
+        return 0
     state, meta = mj.load_npz(args.result)
     args.scale = 2 if args.scale is None else args.scale
     if args.species is None and args.cmap is None and "experiment" in meta:
@@ -273,7 +277,7 @@ def _cmd_render(args):
 
 
 def file_kind(path: Path) -> str:
-    """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton" or "potts"."""
+    """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton", "potts" or "cells"."""
     import numpy as np
 
     if not Path(path).exists():
@@ -284,6 +288,8 @@ def file_kind(path: Path) -> str:
             meta = json.loads(str(data["metadata"])) if "metadata" in names else {}
     except (OSError, ValueError, json.JSONDecodeError) as err:
         raise ValueError(f"{path} is not a morphojax .npz file ({err})") from err
+    if meta.get("format") == "morphojax-cells/1":
+        return "cells"
     if "cells" in names:
         return "automaton"
     if "ids" in names and meta.get("kind") == "potts":

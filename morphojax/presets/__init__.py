@@ -20,6 +20,7 @@ from . import _potts  # noqa: F401  (registers the cellular Potts presets)
 from . import _anisotropy  # noqa: F401  (registers thesis Figs. 5.1 and 5.13: per-cell rates, anisotropy)
 from . import _meshes  # noqa: F401  (registers the triangle-mesh presets)
 from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets: Wireworld, reinforcement patterns)
+from . import _cells  # noqa: F401  (registers the thesis's cell experiments, run from its listings)
 from ._automaton_outputs import run_automaton, run_life_like
 
 REACTION_DIFFUSION_PRESETS = of_kind(ExperimentPreset.kind)  # snapshots of PRESETS by kind

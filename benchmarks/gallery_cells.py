@@ -1,0 +1,60 @@
+"""Run the thesis's cell experiments (the `cells` presets, from its own listings) at full
+size with seed 0 and write the README gallery's cell images and a table of what each run
+made (cells, iterations, seconds).
+
+    python benchmarks/gallery_cells.py [--only thesis-fig6.3 ...] [--quick]
+
+Images go to benchmarks/results/gallery/NAME.png (the .npz and .svg beside them are not
+kept); the table to benchmarks/results/gallery_cells.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+import shutil
+
+import morphojax as mj
+
+HERE = Path(__file__).resolve().parent
+
+
+def main():
+    names = list(mj.presets.of_kind("cells"))
+    p = argparse.ArgumentParser()
+    p.add_argument("--only", nargs="*", default=names)
+    p.add_argument("--quick", action="store_true")
+    args = p.parse_args()
+    out = HERE / "results" / "gallery"
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name in args.only:
+        t0 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            summary = mj.PRESETS[name].run(seed=0, quick=args.quick, out=Path(tmp) / f"{name}.png")
+            shutil.copy(Path(tmp) / f"{name}.png", out / f"{name}.png")
+        seconds = time.perf_counter() - t0
+        rows.append((name, mj.PRESETS[name].figure, summary["iterations"], summary["cells"], seconds))
+        print(f"{name}: {summary['cells']} cells at {summary['iterations']} ({seconds:.1f} s)", flush=True)
+    if args.quick:
+        return
+    lines = ["# The thesis's cell experiments at full size (seed 0)", "",
+             "`python benchmarks/gallery_cells.py` (2-core CPU, other work running; seconds include compilation).", "",
+             "| preset | figure | iterations | cells | seconds |", "|---|---|---|---|---|"]
+    table = HERE / "results" / "gallery_cells.md"
+    kept = {}
+    if table.exists() and len(args.only) < len(names):  # a partial run updates its rows only
+        for line in table.read_text().splitlines():
+            if line.startswith("| `"):
+                kept[line.split("`")[1]] = line
+    for name, figure, iterations, cells, seconds in rows:
+        kept[name] = (f"| `{name}` | {figure} | {', '.join(map(str, iterations))} | "
+                      f"{', '.join(map(str, cells))} | {seconds:.0f} |")
+    lines += [kept[n] for n in names if n in kept]
+    table.write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
