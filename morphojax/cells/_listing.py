@@ -183,7 +183,8 @@ class Listing:
 
     # ---- running ------------------------------------------------------------------
     def run(self, seed: int | None = None, steps: int | None = None, capacity: int | None = None, key=None,
-            max_neighbours: int | None = None, bucket_size: int | None = None) -> Cells:
+            max_neighbours: int | None = None, bucket_size: int | None = None,
+            progress: bool | str = False) -> Cells:
         """Place the prepattern and simulate the listing (`simulate_cells`, thesis ch. 4).
 
         Args:
@@ -196,6 +197,7 @@ class Listing:
             key: a `jax.random` key (split between the prepattern and the run).
             max_neighbours, bucket_size: room in the neighbour search (defaults of
                 `simulate_cells`).
+            progress: show a progress bar (see `simulate_cells`).
 
         A listing runs as published, whatever room it needs: when the divisions overflow
         a capacity you did not give, or the neighbour search overflows room you did not
@@ -206,10 +208,11 @@ class Listing:
         steps = self.steps if steps is None else steps
         if steps is None:
             raise ValueError(f"{self.name}: the listing has no 'stop at' or 'snap ... then exit' line; pass steps")
-        return self.snapshots((steps,), seed, capacity, key, max_neighbours, bucket_size)[-1]
+        return self.snapshots((steps,), seed, capacity, key, max_neighbours, bucket_size, progress)[-1]
 
     def snapshots(self, iterations, seed: int | None = None, capacity: int | None = None, key=None,
-                  max_neighbours: int | None = None, bucket_size: int | None = None) -> list[Cells]:
+                  max_neighbours: int | None = None, bucket_size: int | None = None,
+                  progress: bool | str = False) -> list[Cells]:
         """The cells after each of the increasing `iterations` (0 = the prepattern) of one
         run (the thesis's `snap at`); arguments as `run`. The run is the same as `run`'s
         to the last of them: it is resumed from snapshot to snapshot."""
@@ -237,7 +240,7 @@ class Listing:
                 out = simulate_cells(
                     None, out, target - int(out.step), self.dt, rules=self.rules, key=run_key,
                     domain=self.domain, division_limit=self.division_limit, max_neighbours=room[0],
-                    bucket_size=room[1], throw=False,
+                    bucket_size=room[1], throw=False, progress=self.name if progress is True else progress,
                 ) if target > int(out.step) else out
                 shots.append(out)
             retry = False

@@ -22,6 +22,7 @@ INFLUENCE_RADIUS = 3.0  # thesis 4.2: the six hexagonal or eight Moore neighbour
 SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move of 0.15
 MAX_NEIGHBOURS = 20  # a packed or hexagonal tissue has 6-12 cells within 3.3; crowded growth more
 BUCKET_SIZE = 8  # cells per bucket of side 3.3 (a packed tissue averages 3.4)
+PIECES = 50  # a progress bar moves in 50 pieces of the run
 
 
 def simulate_cells(
@@ -39,6 +40,7 @@ def simulate_cells(
     max_neighbours: int = MAX_NEIGHBOURS,
     bucket_size: int = BUCKET_SIZE,
     throw: bool = True,
+    progress: bool | str = False,
 ) -> Cells:
     """Run `steps` iterations of the thesis's cell simulator (chapter 4).
 
@@ -61,6 +63,9 @@ def simulate_cells(
         throw: raise `SimulationError` (naming the iteration) when the run blew up, a
             division found no room or the neighbour search overflowed. Inside `jit` or
             `vmap` nothing is raised: read `cells.ok` / `cells.message()`.
+        progress: show a progress bar (a string names it); the run then goes in pieces
+            of equal length (identical results, two compilations at most) and stops at
+            the first piece that blew up.
 
     Returns the cells after the run; `cells.step` counts iterations across calls, so a
     run can be resumed by calling again with the result.
@@ -96,10 +101,31 @@ def simulate_cells(
         search=Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=int(max_neighbours),
                       bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity)),
     )
-    out = _run(cells, rules, settings, key, steps)
+    out = _in_pieces(cells, rules, settings, key, steps, progress)
     if throw and is_concrete(out.count, out.overflow_step) and not bool(out.ok):
         raise SimulationError(out.message())
     return out
+
+
+def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progress) -> Cells:
+    """`_run`, in pieces of equal length under a progress bar when asked (the key
+    schedule depends on the iteration only, so the pieces give the same cells)."""
+    if not progress or steps < 2 or not is_concrete(cells.count, settings.dt):
+        return _run(cells, rules, settings, key, steps)
+    from tqdm.auto import tqdm
+
+    piece = max(1, steps // PIECES)
+    label = progress if isinstance(progress, str) else "cells"
+    with tqdm(total=steps, desc=label, unit="iteration", leave=False) as bar:
+        done = 0
+        while done < steps:
+            n = min(piece, steps - done)
+            cells = _run(cells, rules, settings, key, n)
+            done += n
+            bar.update(n)
+            if int(cells.nonfinite_step) >= 0:
+                break
+    return cells
 
 
 @eqx.filter_jit

@@ -38,6 +38,7 @@ def register(subparsers) -> None:
     p.add_argument("--chemical", default=None, help="the chemical shown (default: the first declared)")
     p.add_argument("--texture", action="store_true", help="draw the interpolated texture instead of discs")
     p.add_argument("--list", action="store_true", help="list the shipped listings and exit")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--quiet", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)
 
@@ -58,7 +59,7 @@ def run(args) -> int:
     seed = args.seed if args.seed is not None else (listing.seed or 0)
     out = picture_path(args.out if args.out is not None else Path("out") / f"{listing.name}.png")
     t0 = time.perf_counter()
-    cells = listing.run(seed=seed, steps=steps)
+    cells = listing.run(seed=seed, steps=steps, progress=not args.no_progress)
     seconds = time.perf_counter() - t0
     cmap = listing.colormap or "inferno"
     if args.texture:

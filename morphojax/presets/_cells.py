@@ -76,7 +76,7 @@ def _run_cells(item: CellPreset, seed: int, quick: bool, out: Path, frames: bool
     listing = item.load()
     shots = item.quick if quick else (item.snapshots or _listing_shots(listing))
     t0 = time.perf_counter()
-    cells = listing.snapshots(shots, seed=seed)
+    cells = listing.snapshots(shots, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
     cmap = listing.colormap or "inferno"
     if item.texture:
