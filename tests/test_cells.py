@@ -264,3 +264,11 @@ def test_bad_inputs_name_the_parameter():
         cells.with_capacity(3)
     with pytest.raises(ValueError, match="domain must be"):
         mc.simulate_cells(None, cells, 1, domain="round")
+
+
+def test_a_run_with_a_progress_bar_gives_the_same_cells(growing):
+    cells, rules = growing
+    plain = mc.simulate_cells(BARD, cells, 12, 0.5, rules=rules, key=jax.random.key(1))
+    shown = mc.simulate_cells(BARD, cells, 12, 0.5, rules=rules, key=jax.random.key(1), progress="test")
+    for x, y in zip(jax.tree_util.tree_leaves(plain), jax.tree_util.tree_leaves(shown)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))

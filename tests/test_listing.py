@@ -427,10 +427,13 @@ def test_run_fig_5_2_on_a_7_by_7_grid():
 
 
 def test_run_grows_capacity_when_divisions_overflow():
-    listing = load_listing("define chemical R\ncreate cell 0 0\nrule always divide direction 137.5\n")
-    grown = listing.run(steps=4)  # 1 -> 16 cells; the estimate, max(4 * 1, 1 + 4 // 2) = 4, doubles twice
-    roomy = listing.run(steps=4, capacity=64)
-    assert int(roomy.count) == int(grown.count) == 16 and grown.capacity == 16
-    np.testing.assert_allclose(values(grown.position), values(roomy.position[:16]), atol=1e-5)
-    with pytest.raises(SimulationError, match="did not fit in the capacity of 8 cells"):
-        listing.run(steps=4, capacity=8)  # a capacity you pass is used as given
+    listing = load_listing("define chemical R\ncreate sqr_grid 5 2\nrule always divide direction 137.5\n")
+    # 10 -> 160 cells in 4 iterations; the first capacity, 10 + 10 // 4 + 64 = 76, is
+    # outgrown at iteration 2 and the piece runs again with 114, then 171
+    grown = listing.run(steps=4)
+    roomy = listing.run(steps=4, capacity=400)
+    assert int(roomy.count) == int(grown.count) == 160 and grown.capacity == 171
+    np.testing.assert_allclose(values(grown.position[:160]), values(roomy.position[:160]), atol=1e-5)
+    np.testing.assert_array_equal(values(grown.birth[:160]), values(roomy.birth[:160]))
+    with pytest.raises(SimulationError, match="did not fit in the capacity of 12 cells"):
+        listing.run(steps=4, capacity=12)  # a capacity you pass is used as given

@@ -46,6 +46,7 @@ This module holds the `Listing`, the shipped listings and `load_listing`.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -74,6 +75,15 @@ from ._listing_write import _listing_key, _write_listing, same_rules
 from ._rules import Divide, Rule
 from ._space import Box, Packed
 from ._state import Cells
+
+CAPACITY_GROWTH = 1.5  # a piece that outgrows the capacity runs again with half as much room again
+MAX_RETRIES = 24  # 1.5 ** 24: from one cell to over 16,000 times as many
+
+
+def _bar(total: int, label: str):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=label, unit="iteration", leave=False)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -192,18 +202,16 @@ class Listing:
                 when `key` is given.
             steps: iterations (default: `self.steps`, from `stop at` or `snap ... then
                 exit`; a listing with neither needs it).
-            capacity: room for cells. Default: the prepattern's count when no rule
-                divides; otherwise an estimate, max(4 * count, count + steps // 2).
+            capacity: room for cells. Default: the prepattern's count, and when a rule
+                divides a quarter more, grown during the run as the cells need it.
             key: a `jax.random` key (split between the prepattern and the run).
             max_neighbours, bucket_size: room in the neighbour search (defaults of
                 `simulate_cells`).
             progress: show a progress bar (see `simulate_cells`).
 
-        A listing runs as published, whatever room it needs: when the divisions overflow
-        a capacity you did not give, or the neighbour search overflows room you did not
-        give, the run is repeated with twice that room, up to 3 times.
-
-        Raises SimulationError when the run blows up or still overflows.
+        A listing runs as published, whatever room it needs: room you do not give grows
+        during the run (see `snapshots`). Raises SimulationError when the run blows up, or
+        overflows room you gave.
         """
         steps = self.steps if steps is None else steps
         if steps is None:
@@ -214,9 +222,16 @@ class Listing:
                   max_neighbours: int | None = None, bucket_size: int | None = None,
                   progress: bool | str = False) -> list[Cells]:
         """The cells after each of the increasing `iterations` (0 = the prepattern) of one
-        run (the thesis's `snap at`); arguments as `run`. The run is the same as `run`'s
-        to the last of them: it is resumed from snapshot to snapshot."""
-        from ._simulate import BUCKET_SIZE, MAX_NEIGHBOURS, simulate_cells
+        run (the thesis's `snap at`); arguments as `run`.
+
+        The run goes in pieces (a fiftieth of it, and the snapshots). A piece whose
+        divisions overflow a capacity you did not give is run again from its start with
+        half as much room again, and one whose neighbour search overflows room you did not
+        give with twice that room: the random draws depend on the iteration only, so the
+        cells are those of a run that had the room from the start (up to the order of
+        float sums), and the capacity follows the tissue instead of being guessed.
+        """
+        from ._simulate import BUCKET_SIZE, MAX_NEIGHBOURS, PIECES, simulate_cells
 
         iterations = [int(i) for i in iterations]
         if not iterations or any(b <= a for a, b in zip(iterations, iterations[1:])) or iterations[0] < 0:
@@ -227,31 +242,43 @@ class Listing:
             key = jax.random.key(seed if seed is not None else (self.seed or 0))
         prepattern_key, run_key = jax.random.split(key)
         cells = self.prepattern(prepattern_key)
-        count, steps = int(cells.count), iterations[-1]
         divides = any(isinstance(rule.action, Divide) for rule in self.rules)
         grow_cells, grow_search = capacity is None and divides, max_neighbours is None and bucket_size is None
         if capacity is None:
-            capacity = max(4 * count, count + steps // 2) if divides else count
+            capacity = int(cells.count) + (int(cells.count) // 4 + 64 if divides else 0)
         room = [MAX_NEIGHBOURS if max_neighbours is None else max_neighbours,
                 BUCKET_SIZE if bucket_size is None else bucket_size]
-        for attempt in range(4):
-            shots, out = [], cells.with_capacity(int(capacity))
-            for target in iterations:
-                out = simulate_cells(
-                    None, out, target - int(out.step), self.dt, rules=self.rules, key=run_key,
-                    domain=self.domain, division_limit=self.division_limit, max_neighbours=room[0],
-                    bucket_size=room[1], throw=False, progress=self.name if progress is True else progress,
-                ) if target > int(out.step) else out
-                shots.append(out)
-            retry = False
-            if grow_cells and int(out.overflow_step) >= 0:
-                capacity, retry = 2 * capacity, True  # the divisions did not fit: twice the room
-            if grow_search and int(out.neighbour_overflow_step) >= 0:
-                room, retry = [2 * room[0], 2 * room[1]], True
-            if not retry or attempt == 3 or int(out.nonfinite_step) >= 0:
-                break
-        if not bool(out.ok):
-            raise SimulationError(f"{self.name}: {out.message()}")
+        last = iterations[-1]
+        piece = max(1, last // PIECES)
+        ends = sorted(set(iterations) | set(range(piece, last, piece)))
+        bar = _bar(last, self.name if progress is True else progress) if progress else None
+        out, shots, retries = cells.with_capacity(int(capacity)), [], 0
+        try:
+            for end in ends:
+                while int(out.step) < end:
+                    trial = simulate_cells(
+                        None, out, end - int(out.step), self.dt, rules=self.rules, key=run_key, domain=self.domain,
+                        division_limit=self.division_limit, max_neighbours=room[0], bucket_size=room[1], throw=False,
+                    )
+                    crowded = grow_cells and int(trial.overflow_step) >= 0
+                    cramped = grow_search and int(trial.neighbour_overflow_step) >= 0
+                    if (crowded or cramped) and int(trial.nonfinite_step) < 0 and retries < MAX_RETRIES:
+                        retries += 1  # this piece again, from its start, with more room
+                        if crowded:
+                            out = out.with_capacity(math.ceil(CAPACITY_GROWTH * out.capacity))
+                        if cramped:
+                            room = [2 * room[0], 2 * room[1]]
+                        continue
+                    if bar is not None:
+                        bar.update(int(trial.step) - int(out.step))
+                    out = trial
+                    if not bool(out.ok):
+                        raise SimulationError(f"{self.name}: {out.message()}")
+                if end in iterations:
+                    shots.append(out)
+        finally:
+            if bar is not None:
+                bar.close()
         return shots
 
     # ---- writing ------------------------------------------------------------------
