@@ -131,16 +131,17 @@ def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=
         new_pos = np.clip(new_pos, -np.asarray(box) / 2, np.asarray(box) / 2)
     new["pos"], new["angle"], new["polarised"] = new_pos, angle, polarised
 
-    # newborn cells, in index order (thesis 4.4)
+    # newborn cells, in index order: copies of the parents as the rules saw them (the
+    # current state), placed and turned from the current position and polarity (4.1, 4.4)
     if division_limit is not None:
         divide &= np.array([len(x) <= division_limit for x in nb])
     for i in np.flatnonzero(divide):
-        a = new["angle"][i] + direction[i]
-        for key in ("conc", "rates"):
-            new[key] = np.concatenate([new[key], new[key][:, i:i + 1]], axis=1)
-        new["pos"] = np.concatenate([new["pos"], [new["pos"][i] + [math.cos(a), math.sin(a)]]])
+        a = s["angle"][i] + direction[i]
+        for key, old in (("conc", conc), ("rates", rates)):
+            new[key] = np.concatenate([new[key], old[:, i:i + 1]], axis=1)
+        new["pos"] = np.concatenate([new["pos"], [pos[i] + [math.cos(a), math.sin(a)]]])
         new["angle"] = np.append(new["angle"], a)
-        new["polarised"] = np.append(new["polarised"], new["polarised"][i])
+        new["polarised"] = np.append(new["polarised"], s["polarised"][i])
         new["birth"] = np.append(new["birth"], t + 1)
         new["fixed"] = np.append(new["fixed"], False)
     return new

@@ -236,6 +236,8 @@ def test_a_growing_run_under_jit_vmap_and_grad(growing):
 
     sps = jnp.asarray([0.005, 0.01, 0.02])
     swept = jax.jit(jax.vmap(final))(sps)
+    eager = jax.vmap(final)(sps)  # without jit, nothing is raised from traced flags either
+    np.testing.assert_array_equal(np.asarray(eager.count), np.asarray(swept.count))
     one = final(0.01)
     np.testing.assert_allclose(np.asarray(swept.concentration[1]), np.asarray(one.concentration), rtol=1e-5, atol=1e-5)
     assert (np.asarray(swept.count) == int(one.count)).all()  # the draws do not depend on sp

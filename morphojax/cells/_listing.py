@@ -226,10 +226,11 @@ class Listing:
 
         The run goes in pieces (a fiftieth of it, and the snapshots). A piece whose
         divisions overflow a capacity you did not give is run again from its start with
-        half as much room again, and one whose neighbour search overflows room you did not
-        give with twice that room: the random draws depend on the iteration only, so the
-        cells are those of a run that had the room from the start (up to the order of
-        float sums), and the capacity follows the tissue instead of being guessed.
+        half as much room again, and one whose neighbour search overflows with twice the
+        room you did not give (`max_neighbours`, `bucket_size`): the random draws depend on
+        the iteration only, so the cells are those of a run that had the room from the
+        start (up to the order of float sums), and the capacity follows the tissue instead
+        of being guessed.
         """
         from ._simulate import BUCKET_SIZE, MAX_NEIGHBOURS, PIECES, simulate_cells
 
@@ -243,7 +244,7 @@ class Listing:
         prepattern_key, run_key = jax.random.split(key)
         cells = self.prepattern(prepattern_key)
         divides = any(isinstance(rule.action, Divide) for rule in self.rules)
-        grow_cells, grow_search = capacity is None and divides, max_neighbours is None and bucket_size is None
+        grow_cells, grow_search = capacity is None and divides, max_neighbours is None or bucket_size is None
         if capacity is None:
             capacity = int(cells.count) + (int(cells.count) // 4 + 64 if divides else 0)
         room = [MAX_NEIGHBOURS if max_neighbours is None else max_neighbours,
@@ -266,8 +267,9 @@ class Listing:
                         retries += 1  # this piece again, from its start, with more room
                         if crowded:
                             out = out.with_capacity(math.ceil(CAPACITY_GROWTH * out.capacity))
-                        if cramped:
-                            room = [2 * room[0], 2 * room[1]]
+                        if cramped:  # twice the room you did not give
+                            room = [room[0] if max_neighbours else 2 * room[0],
+                                    room[1] if bucket_size else 2 * room[1]]
                         continue
                     if bar is not None:
                         bar.update(int(trial.step) - int(out.step))

@@ -102,7 +102,7 @@ def simulate_cells(
                       bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity)),
     )
     out = _in_pieces(cells, rules, settings, key, steps, progress)
-    if throw and is_concrete(out.count, out.overflow_step) and not bool(out.ok):
+    if throw and is_concrete(out) and not bool(out.ok):  # under vmap or jit: read out.ok
         raise SimulationError(out.message())
     return out
 

@@ -12,8 +12,9 @@
 6. limits: concentrations into [0, upper], diffusion rates >= 0, positions into the
    domain;
 7. newborn cells: each dividing cell (at most `division_limit` neighbours) gets a child
-   one unit away at angle polarity + the rule's direction, with its concentrations and
-   rates copied and its polarity turned by the same angle (4.4), born next iteration;
+   one unit away at angle polarity + the rule's direction, a copy of the parent as the
+   rules saw it (concentrations, rates; 4.4) with its polarity turned by the same angle,
+   born next iteration;
 8. the next state replaces the current one.
 
 Polarization (eq. 4.10) sets p = sum_j (R_j - R_i) d_j / |d_j| for the next iteration.
@@ -228,15 +229,20 @@ def collision_offset(cells: Cells, touch: Contacts) -> Array:
 
 
 # ---- division -------------------------------------------------------------------------
-def divide(cells: Cells, wants: Array, direction: Array, iteration: Array) -> Cells:
-    """Append a child for every cell in `wants`, in index order, while capacity lasts."""
+def divide(cells: Cells, parents: Cells, wants: Array, direction: Array, iteration: Array) -> Cells:
+    """Append to `cells` a child for every cell in `wants`, in index order, while capacity
+    lasts. A child is its parent as the rules saw it (`parents`, the iteration's current
+    state: the thesis lists newborns while evaluating rules, 4.1 steps 2 and 7), one unit
+    away at the parent's polarity + `direction`; so a child differs from its parent by the
+    parent's update of this iteration, which is what lets a tissue grown from one cell
+    (Fig. 6.3) break its symmetry."""
     capacity = cells.capacity
     rank = jnp.cumsum(wants) - 1
     seat = cells.count + rank
     fits = wants & (seat < capacity)
     target = jnp.where(fits, seat, capacity)
-    angle = cells.polarity + direction
-    child_position = cells.position + jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
+    angle = parents.polarity + direction
+    child_position = parents.position + jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
 
     def put(buffer, values, axis=0):
         if axis == 0:
@@ -251,9 +257,9 @@ def divide(cells: Cells, wants: Array, direction: Array, iteration: Array) -> Ce
         (
             put(cells.position, child_position),
             put(cells.polarity, angle),
-            put(cells.polarised, cells.polarised),
-            put(cells.concentration, cells.concentration, axis=1),
-            put(cells.diffusion, cells.diffusion, axis=1),
+            put(cells.polarised, parents.polarised),
+            put(cells.concentration, parents.concentration, axis=1),
+            put(cells.diffusion, parents.diffusion, axis=1),
             put(cells.birth, jnp.full_like(cells.birth, iteration + 1)),
             put(cells.fixed, jnp.zeros_like(cells.fixed)),  # children always move (so they can make room)
             cells.count + jnp.sum(fits).astype(jnp.int32),
@@ -288,7 +294,7 @@ def step(cells: Cells, neighbours: NeighbourList, rules: tuple[Rule, ...], setti
     wants = fx.divide & alive
     if settings.division_limit is not None:
         wants &= touch.count <= settings.division_limit
-    nxt = divide(nxt, wants, fx.direction, iteration)
+    nxt = divide(nxt, cells, wants, fx.direction, iteration)
     nxt = eqx.tree_at(lambda c: c.step, nxt, iteration + 1)
 
     neighbours = settings.search.update(neighbours, nxt.position, nxt.count)

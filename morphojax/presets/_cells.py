@@ -17,6 +17,12 @@ Where a listing is inconsistent the preset decides, and says so here:
   a comment ("omitted for brevity"); the preset restores them.
 - Fig. 5.1's listing has no `stop`; the preset snaps the iterations of the figure, 0, 2,
   5, 50 and 1000.
+
+Listings A.5, A.7 and A.8 (Figs. 6.3, 6.5, 6.6) grow from one cell, so that cell's random
+concentrations decide the run: V = 0 is absorbing under the clamp at 0 (there dV/dt =
+-12 s), and the cell of seed 0 loses V in all three (seeds 1 and 2 keep it; the gallery
+uses seed 1). Every child starts as its parent was when the rules ran, one update behind
+it (thesis 4.1): that small difference is what breaks the symmetry of a tissue of clones.
 """
 
 from __future__ import annotations
