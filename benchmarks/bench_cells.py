@@ -8,8 +8,9 @@ The thesis's Table A.1 times its C++ simulator on one core of a 1.8 GHz Core i7-
   iterations, no division: 21.122 s.
 morphojax runs the shipped listings with `Listing.run` (compiled; the compile time, the
 first run less the median of three re-runs, is reported apart) and at `Listing.run`'s
-default capacity (the leopard: 4 x 2,900 = 11,600 cells of buffers, whose size every
-iteration pays for; `--leopard-capacity` sets another). Listing A.18 as printed
+default capacity, which follows the tissue (a piece of the run that outgrows it runs
+again with 1.5x the room; every iteration pays for the buffers' size, so a guess of
+4 x 2,900 = 11,600 cost the leopard twice its time; `--leopard-capacity` fixes one). Listing A.18 as printed
 sets only 9 of its 32 seed cells (the other 23 are named in a comment, "omitted for
 brevity"); the benchmark restores them (`set cell N chemical V conc 10` lines), as a
 preset would, and runs it with seed 0. The moray runs as published (`use seed 1`).
@@ -385,8 +386,8 @@ def main():
     p.add_argument("--numpy-steps", type=int, default=200, help="iterations per timing of the NumPy port")
     p.add_argument("--numpy-max-cells", type=int, default=30_000, help="no NumPy baseline above this many cells")
     p.add_argument("--leopard-capacity", type=int, default=None,
-                   help="cell capacity of the leopard's run (default: Listing.run's estimate, 4 x 2,900 = 11,600; "
-                        "every iteration costs in proportion to it)")
+                   help="a fixed cell capacity for the leopard's run (default: Listing.run's, which grows "
+                        "with the tissue; every iteration costs in proportion to it)")
     args = p.parse_args()
     numpy_steps = 5 if args.quick else args.numpy_steps
     quick = ["--quick"] if args.quick else []
