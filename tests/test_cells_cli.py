@@ -91,3 +91,16 @@ def test_every_cell_preset_loads_its_listing():
     for item in cell_presets.values():
         listing = item.load()
         assert listing.species and (listing.steps or item.snapshots), item.name
+
+
+@pytest.mark.parametrize("name", ["thesis-fig6.3", "thesis-fig6.7", "thesis-fig7.16-cells"])
+def test_quick_presets_write_their_files(name, tmp_path):
+    """Growth from one cell, a row of snapshots, an interpolated texture."""
+    item = mj.PRESETS[name]
+    summary = item.run(seed=1, quick=True, out=tmp_path / "p.png")
+    assert summary["iterations"] == list(item.quick)
+    cells, meta = mj.load_cells(tmp_path / "p.npz")
+    assert int(cells.count) == summary["cells"][-1] and meta["seed"] == 1
+    assert cells.ok and (tmp_path / "p.png").exists() and (tmp_path / "p.svg").exists()
+    if name == "thesis-fig6.3":  # one division every other iteration, from one cell
+        assert summary["cells"] == [1 + item.quick[-1] // 2]
