@@ -32,7 +32,7 @@ def save_cells(path, cells: Cells, metadata: dict | None = None) -> Path:
     }
     live = cells.live()
     return write_npz(
-        path, **live, upper=np.asarray(cells.upper),
+        path, **live, lower=np.asarray(cells.lower), upper=np.asarray(cells.upper),
         status=np.asarray([int(cells.overflow_step), int(cells.neighbour_overflow_step), int(cells.nonfinite_step)]),
         metadata=json.dumps(meta),
     )
@@ -50,10 +50,11 @@ def load_cells(path) -> tuple[Cells, dict]:
     except (OSError, KeyError) as err:
         raise ValueError(f"cannot read cells from {path}: {err}") from err
     upper = [None if np.isinf(u) else float(u) for u in arrays["upper"]]
+    lower = arrays.get("lower")  # files written before lower limits existed: the thesis's 0
     cells = make_cells(
         meta["species"], arrays["position"], concentration=arrays["concentration"], diffusion=arrays["diffusion"],
         polarity=arrays["polarity"], polarised=arrays["polarised"], birth=arrays["birth"], fixed=arrays["fixed"],
-        upper=upper, anisotropic=tuple(bool(a) for a in meta["anisotropic"]), capacity=int(meta["capacity"]),
+        lower=lower, upper=upper, anisotropic=tuple(bool(a) for a in meta["anisotropic"]), capacity=int(meta["capacity"]),
         step=int(meta["step"]),
     )
     overflow, neighbour_overflow, nonfinite = (int(v) for v in arrays["status"])

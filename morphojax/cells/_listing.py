@@ -78,6 +78,7 @@ from ._state import Cells
 
 CAPACITY_GROWTH = 1.5  # a piece that outgrows the capacity runs again with half as much room again
 MAX_RETRIES = 24  # 1.5 ** 24: from one cell to over 16,000 times as many
+MAX_ROOM = 512  # neighbours per cell or cells per bucket: no tissue of unit cells needs more
 
 
 def _bar(total: int, label: str):
@@ -260,9 +261,11 @@ class Listing:
                     trial = simulate_cells(
                         None, out, end - int(out.step), self.dt, rules=self.rules, key=run_key, domain=self.domain,
                         division_limit=self.division_limit, max_neighbours=room[0], bucket_size=room[1], throw=False,
+                        check_dt=int(out.step) == 0,  # once, on the prepattern
                     )
                     crowded = grow_cells and int(trial.overflow_step) >= 0
                     cramped = grow_search and int(trial.neighbour_overflow_step) >= 0
+                    cramped &= max(room) < MAX_ROOM  # past that, more room would not help
                     if (crowded or cramped) and int(trial.nonfinite_step) < 0 and retries < MAX_RETRIES:
                         retries += 1  # this piece again, from its start, with more room
                         if crowded:

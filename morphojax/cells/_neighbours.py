@@ -101,7 +101,7 @@ def find_neighbours(position: Array, count: Array, radius: float, max_neighbours
     first = starts[jnp.maximum(bucket[:, 0:1] - 1, 0) + side_count * row]
     end = starts[jnp.minimum(bucket[:, 0:1] + 1, side_count - 1) + side_count * row + 1]
     end = jnp.where(row_inside, end, first)
-    crowded = jnp.any(end - first > run)
+    crowded = jnp.any(alive[:, None] & (end - first > run))
     seat = (first[..., None] + jnp.arange(run)).reshape(capacity, -1)  # (C, 3 run)
     # 1D takes in "clip" mode: several times faster on a CPU than gathering (x, y) rows
     candidate = jnp.take(order, seat, mode="clip")

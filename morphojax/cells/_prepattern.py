@@ -85,11 +85,12 @@ def cells_at(
         polarity, polarity_spread: angle in radians (None: unpolarised) and its noise.
         jitter: amplitude of a uniform displacement of every position, per axis.
         fixed: cells that collisions never move.
-        upper, anisotropic: saturation limits and anisotropic reagents (see `make_cells`).
+        upper, anisotropic: saturation limits and anisotropic reagents (see `make_cells`;
+            a model gives its own lower and upper limits).
         capacity: room for divisions (default: just these cells).
         key: a `jax.random` key for the noise (needed when any spread or jitter is > 0).
     """
-    names, model_rates, model_upper = _species(species)
+    names, model_rates, model_lower, model_upper = _species(species)
     positions = np.asarray(positions, float).reshape(-1, 2)
     n, s = positions.shape[0], len(names)
     for name, value in (("spread", spread), ("diffusion_spread", diffusion_spread),
@@ -119,7 +120,7 @@ def cells_at(
     xy = positions + uniform(keys[3], (n, 2), jitter)
     return make_cells(
         names, xy, concentration=conc, diffusion=diff, polarity=angle, fixed=np.full(n, bool(fixed)),
-        upper=model_upper if upper is None else upper, anisotropic=anisotropic, capacity=capacity,
+        lower=model_lower, upper=model_upper if upper is None else upper, anisotropic=anisotropic, capacity=capacity,
     )
 
 
@@ -150,10 +151,11 @@ def _species(species):
         rates = np.asarray(species.diffusion(), float)
         if rates.ndim != 1:
             raise ValueError("a model with diffusion-rate maps cannot seed cells; give the rates per reagent")
-        return tuple(species.species), rates, [None if math.isinf(u) else float(u) for u in np.asarray(species.upper)]
+        upper = [None if math.isinf(u) else float(u) for u in np.asarray(species.upper)]
+        return tuple(species.species), rates, np.asarray(species.lower, float), upper
     if isinstance(species, str):
         species = (species,)
-    return tuple(species), None, None
+    return tuple(species), None, None, None
 
 
 def _per_species(value, s: int, name: str) -> np.ndarray:
@@ -165,4 +167,4 @@ def _per_species(value, s: int, name: str) -> np.ndarray:
     return arr
 
 
-__all__ = ["cell_disc", "cell_grid", "cells_at", "disc_positions", "grid_positions", "Cells"]
+__all__ = ["cell_disc", "cell_grid", "cells_at", "disc_positions", "grid_positions"]

@@ -167,6 +167,8 @@ class React(eqx.Module):
         if not isinstance(model, AbstractModel):
             raise ValueError(f"React.model must be a morphojax model (got {type(model).__name__})")
         species = (species,) if isinstance(species, str) else tuple(species)
+        if len(set(species)) != len(species):
+            raise ValueError(f"React.species must name distinct reagents (got {species})")
         if len(species) != model.n_species:
             raise ValueError(f"React.species names {len(species)} reagents; {type(model).__name__} reacts "
                              f"{model.n_species} ({', '.join(model.species)})")

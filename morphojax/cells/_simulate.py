@@ -8,6 +8,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._checks import as_float_array, check_count, check_finite, check_range, is_concrete
 from .._status import SimulationError
@@ -16,7 +17,7 @@ from ._neighbours import Search, table_size_for
 from ._rules import Chance, Change, Divide, React, Rule, check_rules
 from ._space import as_domain
 from ._state import Cells
-from ._step import Settings, step
+from ._step import Settings, contacts, step
 
 INFLUENCE_RADIUS = 3.0  # thesis 4.2: the six hexagonal or eight Moore neighbours of unit-radius cells
 SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move of 0.15
@@ -41,15 +42,16 @@ def simulate_cells(
     bucket_size: int = BUCKET_SIZE,
     throw: bool = True,
     progress: bool | str = False,
+    check_dt: bool = True,
 ) -> Cells:
     """Run `steps` iterations of the thesis's cell simulator (chapter 4).
 
     Args:
         model: a reaction every live cell runs every iteration (`React(model, species)`
-            placed before `rules`), or None for rules only. The model's upper limits are
-            added to the cells' (the smaller wins). The cells carry their own diffusion
-            rates (eq. 4.7 combines them); the model's rates are not used here:
-            `cell_grid(shape, model)` seeds cells with them.
+            placed before `rules`), or None for rules only. The reagents it reacts take
+            its lower limits and the smaller of its and the cells' upper limits. The
+            cells carry their own diffusion rates (eq. 4.7 combines them); the model's
+            rates are not used here: `cell_grid(shape, model)` seeds cells with them.
         cells: the initial `Cells` (with room to divide into: see `capacity`).
         steps: iterations to run.
         dt: the time step multiplying reactions and diffusion (not `Change` amounts).
@@ -63,12 +65,21 @@ def simulate_cells(
         throw: raise `SimulationError` (naming the iteration) when the run blew up, a
             division found no room or the neighbour search overflowed. Inside `jit` or
             `vmap` nothing is raised: read `cells.ok` / `cells.message()`.
+        check_dt: refuse a dt beyond the explicit-Euler limit of the initial cells'
+            exchange, dt <= 2 / lambda_max per reagent (lambda_max of sum_j D_ij (R_i -
+            R_j), by power iteration; growth and motion change it later).
         progress: show a progress bar (a string names it); the run then goes in pieces
             of equal length (identical results, two compilations at most) and stops at
             the first piece that blew up.
 
     Returns the cells after the run; `cells.step` counts iterations across calls, so a
-    run can be resumed by calling again with the result.
+    run can be resumed by calling again with the result (the same cells up to the order
+    of float sums where cells move: a new call builds its neighbour list afresh).
+
+    Decisions where the thesis is silent: a cell divides at most once per iteration (the
+    first `Divide` rule that fires sets the angle); children are never fixed, even of a
+    fixed parent (Listing A.6 grows from a fixed spine: fixed children would pile up on
+    it); a child is its parent as the rules saw it, one update behind it.
     """
     if not isinstance(cells, Cells):
         raise ValueError(f"cells must be a Cells state (got {type(cells).__name__}); build one with mj.cell_grid")
@@ -101,6 +112,8 @@ def simulate_cells(
         search=Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=int(max_neighbours),
                       bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity)),
     )
+    if check_dt and steps and is_concrete(cells, dt):
+        _check_dt(cells, settings)
     out = _in_pieces(cells, rules, settings, key, steps, progress)
     if throw and is_concrete(out) and not bool(out.ok):  # under vmap or jit: read out.ok
         raise SimulationError(out.message())
@@ -108,10 +121,12 @@ def simulate_cells(
 
 
 def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progress) -> Cells:
-    """`_run`, in pieces of equal length under a progress bar when asked (the key
-    schedule depends on the iteration only, so the pieces give the same cells)."""
-    if not progress or steps < 2 or not is_concrete(cells.count, settings.dt):
-        return _run(cells, rules, settings, key, steps)
+    """`_run`, in pieces of equal length under a progress bar when asked. The key
+    schedule depends on the iteration only and the neighbour list goes from piece to
+    piece, so the pieces give the same cells as one run."""
+    neighbours = _first_neighbours(cells, settings)
+    if not progress or steps < 2 or not is_concrete(cells, rules, settings):
+        return _run(cells, neighbours, rules, settings, key, steps)[0]
     from tqdm.auto import tqdm
 
     piece = max(1, steps // PIECES)
@@ -120,7 +135,7 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
         done = 0
         while done < steps:
             n = min(piece, steps - done)
-            cells = _run(cells, rules, settings, key, n)
+            cells, neighbours = _run(cells, neighbours, rules, settings, key, n)
             done += n
             bar.update(n)
             if int(cells.nonfinite_step) >= 0:
@@ -129,8 +144,12 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
 
 
 @eqx.filter_jit
-def _run(cells: Cells, rules, settings: Settings, key, steps: int) -> Cells:
-    neighbours = settings.search.build(cells.position, cells.count)
+def _first_neighbours(cells: Cells, settings: Settings):
+    return settings.search.build(cells.position, cells.count)
+
+
+@eqx.filter_jit
+def _run(cells: Cells, neighbours, rules, settings: Settings, key, steps: int):
     cells = eqx.tree_at(
         lambda c: c.neighbour_overflow_step, cells,
         jnp.where((cells.neighbour_overflow_step < 0) & neighbours.overflow, cells.step, cells.neighbour_overflow_step),
@@ -140,17 +159,56 @@ def _run(cells: Cells, rules, settings: Settings, key, steps: int) -> Cells:
         cells, neighbours = carry
         return step(cells, neighbours, rules, settings, key), None
 
-    (cells, _), _ = jax.lax.scan(body, (cells, neighbours), None, length=steps)
-    return cells
+    (cells, neighbours), _ = jax.lax.scan(body, (cells, neighbours), None, length=steps)
+    return cells, neighbours
+
+
+def _check_dt(cells: Cells, settings: Settings) -> None:
+    """ValueError when dt exceeds 2 / lambda_max of some reagent's exchange."""
+    largest = np.asarray(_exchange_spectral_radius(cells, _first_neighbours(cells, settings), settings))
+    limit = 2.0 / np.maximum(largest, 1e-30)
+    worst = int(np.argmin(limit))
+    if float(settings.dt) > limit[worst] * (1 + 1e-3):
+        raise ValueError(
+            f"dt = {float(settings.dt):g} exceeds the explicit-Euler limit {limit[worst]:.4g} of reagent "
+            f"{cells.species[worst]!r}'s exchange between these cells (2 / the largest eigenvalue, "
+            f"{largest[worst]:.4g}, of sum_j D_ij (R_i - R_j)); use dt <= {limit[worst]:.4g}, or check_dt=False")
+
+
+@eqx.filter_jit
+def _exchange_spectral_radius(cells: Cells, neighbours, settings: Settings, iterations: int = 100):
+    """Per reagent, the largest eigenvalue of the exchange operator sum_j D_ij (x_i - x_j)
+    on the live cells (isotropic rates: anisotropy only lowers them), by power iteration
+    (the operator is symmetric and positive semi-definite)."""
+    touch = contacts(cells, neighbours, settings.influence_radius)
+    rate_i = cells.diffusion[:, :, None]
+    rate_j = jnp.take(cells.diffusion, touch.index, axis=1, mode="clip")
+    total = rate_i + rate_j
+    weight = jnp.where(touch.near & (total > 0), 2 * rate_i * rate_j / jnp.where(total > 0, total, 1.0), 0.0)
+
+    def apply(x):
+        return jnp.sum(weight * (x[:, :, None] - jnp.take(x, touch.index, axis=1, mode="clip")), axis=-1)
+
+    x = jnp.where(cells.alive, jax.random.uniform(jax.random.key(0), cells.concentration.shape) - 0.5, 0.0)
+
+    def power(_, x):
+        y = apply(x)
+        return y / jnp.maximum(jnp.linalg.norm(y, axis=1, keepdims=True), 1e-30)
+
+    x = jax.lax.fori_loop(0, iterations, power, x / jnp.linalg.norm(x, axis=1, keepdims=True))
+    return jnp.sum(x * apply(x), axis=1)  # the Rayleigh quotient of a unit vector
 
 
 def _with_model_limits(cells: Cells, model: AbstractModel, reacting) -> Cells:
-    upper = cells.upper
+    """The reagents `model` reacts take its lower limits and the smaller upper ones."""
+    lower, upper = cells.lower, cells.upper
+    model_lower = jnp.broadcast_to(jnp.asarray(model.lower), (model.n_species,))
     model_upper = jnp.broadcast_to(jnp.asarray(model.upper), (model.n_species,))
     for i, name in enumerate(reacting):
         row = cells.index(name)
+        lower = lower.at[row].set(model_lower[i])
         upper = upper.at[row].min(model_upper[i])
-    return cells.replace(upper=upper)
+    return cells.replace(lower=lower, upper=upper)
 
 
 def _draws(rules) -> bool:

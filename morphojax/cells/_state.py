@@ -14,7 +14,6 @@ is 3); angles are radians from the +x axis toward +y; time is iterations x dt.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import equinox as eqx
@@ -22,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .._checks import default_float, is_concrete
+from .._checks import default_float
 
 NO_STEP = -1  # the value of a *_step field while nothing has happened
 
@@ -49,8 +48,11 @@ class Cells(eqx.Module):
             bucket more cells than it holds); -1 if none.
         nonfinite_step: int32 scalar, the first iteration that produced NaN or Inf; -1 if none.
         species: reagent names (static), in the order of the concentration rows.
-        upper: (species,) saturation limit of each reagent (+inf for none; thesis 4.8.1
-            "define chemical R limit L"); every reagent is also kept >= 0 (thesis 4.1, step 6).
+        lower, upper: (species,) the limits every concentration is clamped to after each
+            iteration: `upper` the saturation limit (+inf for none; thesis 4.8.1 "define
+            chemical R limit L"), `lower` 0 as in the thesis (4.1, step 6: "negative
+            reagent concentrations are set to zero"), or a model's own lower limit for the
+            reagents it reacts (FitzHugh-Nagumo's are -inf).
         anisotropic: (static) per reagent, whether its diffusion follows the polarity.
     """
 
@@ -66,6 +68,7 @@ class Cells(eqx.Module):
     overflow_step: Array
     neighbour_overflow_step: Array
     nonfinite_step: Array
+    lower: Array
     upper: Array
     species: tuple[str, ...] = eqx.field(static=True)
     anisotropic: tuple[bool, ...] = eqx.field(static=True)
@@ -133,11 +136,14 @@ class Cells(eqx.Module):
         if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < n:
             raise ValueError(f"capacity must be an integer >= the number of cells ({n}) (got {capacity!r})")
         data = self.live()
-        return make_cells(
+        resized = make_cells(
             self.species, data["position"], concentration=data["concentration"], diffusion=data["diffusion"],
             polarity=data["polarity"], polarised=data["polarised"], birth=data["birth"], fixed=data["fixed"],
-            upper=self.upper, anisotropic=self.anisotropic, capacity=capacity, step=int(self.step),
+            lower=np.asarray(self.lower), upper=np.asarray(self.upper), anisotropic=self.anisotropic,
+            capacity=capacity, step=int(self.step),
         )
+        return resized.replace(overflow_step=self.overflow_step, neighbour_overflow_step=self.neighbour_overflow_step,
+                               nonfinite_step=self.nonfinite_step)
 
     def replace(self, **changes) -> "Cells":
         """A copy with some fields replaced (e.g. `cells.replace(upper=...)`)."""
@@ -155,6 +161,7 @@ def make_cells(
     polarised=None,
     birth=None,
     fixed=None,
+    lower=None,
     upper=None,
     anisotropic=(),
     capacity: int | None = None,
@@ -165,7 +172,8 @@ def make_cells(
     `concentration`/`diffusion`: (species, n) arrays, or one value per species. `polarity`:
     angles in radians, or NaN where a cell is unpolarised (`polarised` then defaults to the
     finite entries). `anisotropic`: names of the reagents whose diffusion follows polarity,
-    or one bool per reagent. `upper`: saturation limits per reagent (None = no limit).
+    or one bool per reagent. `upper`: saturation limits per reagent (None = no limit);
+    `lower`: the lower limits (default 0, as the thesis).
     """
     species = tuple(str(s) for s in species)
     if not species or len(set(species)) != len(species):
@@ -206,6 +214,9 @@ def make_cells(
         [np.inf if u is None else float(u) for u in (upper if np.ndim(upper) else [upper] * s)])
     if limits.shape != (s,) or np.isnan(limits).any() or (limits < 0).any():
         raise ValueError(f"upper must hold one limit >= 0 (or None) per reagent, {s} in all (got {upper!r})")
+    floors = np.zeros(s) if lower is None else np.broadcast_to(np.asarray(lower, float), (s,)).copy()
+    if np.isnan(floors).any() or np.isposinf(floors).any() or (floors > limits).any():
+        raise ValueError(f"lower must hold one limit per reagent, below its upper limit (got {lower!r})")
     if anisotropic and all(isinstance(a, (bool, np.bool_)) for a in anisotropic):
         flags = tuple(bool(a) for a in anisotropic)
     else:
@@ -235,6 +246,7 @@ def make_cells(
         overflow_step=jnp.asarray(NO_STEP, jnp.int32),
         neighbour_overflow_step=jnp.asarray(NO_STEP, jnp.int32),
         nonfinite_step=jnp.asarray(NO_STEP, jnp.int32),
+        lower=jnp.asarray(floors, dtype),
         upper=jnp.asarray(limits, dtype),
         species=species,
         anisotropic=flags,
@@ -262,15 +274,6 @@ def concatenate(groups: Sequence[Cells], capacity: int | None = None) -> Cells:
         polarised=np.concatenate([p["polarised"] for p in parts]),
         birth=np.concatenate([p["birth"] for p in parts]),
         fixed=np.concatenate([p["fixed"] for p in parts]),
-        upper=np.asarray(first.upper), anisotropic=first.anisotropic,
+        lower=np.asarray(first.lower), upper=np.asarray(first.upper), anisotropic=first.anisotropic,
         capacity=total if capacity is None else capacity, step=int(first.step),
     )
-
-
-def degrees(angle) -> float:
-    """Degrees (the thesis's listings) to radians (morphojax)."""
-    return math.radians(float(angle))
-
-
-def is_concrete_cells(cells: Cells) -> bool:
-    return is_concrete(cells.count, cells.overflow_step)

@@ -9,8 +9,8 @@
    the exchange is symmetric, so every reagent's total is conserved;
 5. collisions: o_i = sum_j (0.25 - 0.5 / |d_j|) d_j over neighbours with 0 < |d_j| < 2
    (eq. 4.9; fixed cells never move);
-6. limits: concentrations into [0, upper], diffusion rates >= 0, positions into the
-   domain;
+6. limits: concentrations into [lower, upper] (0 and the saturation limit in the
+   thesis), diffusion rates >= 0, positions into the domain;
 7. newborn cells: each dividing cell (at most `division_limit` neighbours) gets a child
    one unit away at angle polarity + the rule's direction, a copy of the parent as the
    rules saw it (concentrations, rates; 4.4) with its polarity turned by the same angle,
@@ -176,7 +176,10 @@ def _act(action, fx: _Effects, mask: Array, value, cells: Cells, touch: Contacts
         return fx._replace(rates=fx.rates.at[row].add(delta))
     if isinstance(action, React):
         rows = jnp.asarray([cells.index(name) for name in action.species])
-        rate = action.model.reaction(cells.concentration[rows]) * (dt * value(action.scale))
+        # cells the rule skips (and unused capacity, all zeros) react on a harmless 1, so a
+        # reaction singular at 0 (Gierer-Meinhardt) leaves no NaN in the gradient
+        x = jnp.where(mask, cells.concentration[rows], 1.0)
+        rate = action.model.reaction(x) * (dt * value(action.scale))
         return fx._replace(conc=fx.conc.at[rows].add(jnp.where(mask, rate, 0.0)))
     if isinstance(action, Divide):
         first = mask & ~fx.divide  # the first divide rule that fires sets the direction
@@ -279,7 +282,7 @@ def step(cells: Cells, neighbours: NeighbourList, rules: tuple[Rule, ...], setti
 
     alive = cells.alive
     concentration = cells.concentration + fx.conc + diffusion_change(cells, touch, dt)
-    concentration = jnp.where(alive, jnp.clip(concentration, 0.0, cells.upper[:, None]), 0.0)
+    concentration = jnp.where(alive, jnp.clip(concentration, cells.lower[:, None], cells.upper[:, None]), 0.0)
     rates = jnp.where(alive, jnp.maximum(cells.diffusion + fx.rates, 0.0), 0.0)
     position = clamp_positions(settings.domain, cells.position + collision_offset(cells, touch), cells.count)
     position = jnp.where(alive[:, None], position, 0.0)
@@ -295,6 +298,8 @@ def step(cells: Cells, neighbours: NeighbourList, rules: tuple[Rule, ...], setti
     if settings.division_limit is not None:
         wants &= touch.count <= settings.division_limit
     nxt = divide(nxt, cells, wants, fx.direction, iteration)
+    if settings.domain is not None:  # newborns start inside the domain too
+        nxt = eqx.tree_at(lambda c: c.position, nxt, clamp_positions(settings.domain, nxt.position, nxt.count))
     nxt = eqx.tree_at(lambda c: c.step, nxt, iteration + 1)
 
     neighbours = settings.search.update(neighbours, nxt.position, nxt.count)
