@@ -314,15 +314,16 @@ def _shipped() -> dict[str, Path]:
     for k, figure in enumerate(_FIGURES, start=1):
         path = LISTING_DIR / f"A{k:02d}_fig{figure}.txt"
         names[f"A.{k}"] = names[f"fig{figure}"] = path
-    for stem in ("fig5.1", "fig5.2", "listing4.1", "listing5.1"):
+    for stem in ("fig5.1", "fig5.2", "fig7.20", "listing4.1", "listing5.1"):
         names[stem] = LISTING_DIR / f"{stem}.txt"
     return names
 
 
 LISTINGS: Mapping[str, Path] = _shipped()
 """The thesis's listings shipped with morphojax, by name: "A.1" ... "A.18" (Appendix A)
-and the same files by figure, "fig5.14" ... "fig7.21", plus "fig5.1", "fig5.2" (the
-listings printed in Figs. 5.1 and 5.2), "listing4.1" and "listing5.1"."""
+and the same files by figure, "fig5.14" ... "fig7.21", plus "fig5.1", "fig5.2" and
+"fig7.20" (the listings printed with Figs. 5.1, 5.2 and 7.20), "listing4.1" and
+"listing5.1"."""
 
 
 def listing_path(name: str) -> Path:

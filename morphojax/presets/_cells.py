@@ -159,6 +159,8 @@ _cells("thesis-fig7.16-cells", "A.16", "thesis Fig. 7.16 (Listing A.16)",
 _cells("thesis-fig7.18-cells", "A.17", "thesis Fig. 7.18 (Listing A.17)",
        "moray eel: saturated RD with body parts of different U rates and a V-producing gradient",
        quick=(300,), texture=True, edit=_fix_a17_window)
+_cells("thesis-fig7.20", "fig7.20", "thesis Fig. 7.20 (listing of section 7.4)",
+       "uniform growth with saturated RD (U limit 6.3): the pattern is kept and evolves", quick=(0, 300))
 _cells("thesis-fig7.21", "A.18", "thesis Figs. 7.21-7.22 (Listing A.18)",
        "the thesis's leopard: saturated RD on a packed, growing hexagonal tissue; rosettes from growth",
        quick=(600,), texture=True, edit=lambda text: _add_before_rules(
