@@ -17,7 +17,8 @@ no Verlet list (the neighbours are found afresh every iteration), no padding.
    pair, d pointing to the other (eq. 4.9); fixed cells never move;
 5. limits: concentrations into [0, upper], rates >= 0, positions into the domain;
 6. division: each dividing cell with at most `division_limit` neighbours appends a child
-   one unit away at angle polarity + direction, copying its reagents (thesis 4.4).
+   one unit away at angle polarity + direction, a copy of the parent as the rules saw it
+   (thesis 4.1, 4.4), clamped into the domain.
 
 What the benchmarked listings do not use is left out and refused: anisotropic diffusion
 (eq. 4.8), `Map` and `Polarize` (eq. 4.10), reactions other than Bard's. Arrays keep the
@@ -223,20 +224,24 @@ def clamp_positions(domain, position: np.ndarray, count: int) -> np.ndarray:
 
 
 # ---- 6. division ----------------------------------------------------------------------------
-def divide(s: NumpyCells, wants: np.ndarray, direction: np.ndarray) -> NumpyCells:
-    """A child for every cell in `wants`, appended in index order (thesis 4.4)."""
+def divide(s: NumpyCells, parents_state: NumpyCells, wants: np.ndarray, direction: np.ndarray, domain=None) -> NumpyCells:
+    """A child for every cell in `wants`, appended in index order: a copy of the parent as
+    the rules saw it (`parents_state`, the iteration's current state), one unit from its
+    current position at its polarity + direction, clamped into the domain (thesis 4.1, 4.4)."""
     parents = np.flatnonzero(wants)
     if parents.size == 0:
         return s
-    angle = (s.polarity[parents] + direction[parents]).astype(s.polarity.dtype)
-    child = s.position[parents] + np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    p = parents_state
+    angle = (p.polarity[parents] + direction[parents]).astype(s.polarity.dtype)
+    child = p.position[parents] + np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    position = np.concatenate([s.position, child])
     return dataclasses.replace(
         s,
-        position=np.concatenate([s.position, child]),
+        position=clamp_positions(domain, position, len(position)).astype(s.position.dtype),
         polarity=np.concatenate([s.polarity, angle]),
-        polarised=np.concatenate([s.polarised, s.polarised[parents]]),
-        concentration=np.concatenate([s.concentration, s.concentration[:, parents]], axis=1),
-        diffusion=np.concatenate([s.diffusion, s.diffusion[:, parents]], axis=1),
+        polarised=np.concatenate([s.polarised, p.polarised[parents]]),
+        concentration=np.concatenate([s.concentration, p.concentration[:, parents]], axis=1),
+        diffusion=np.concatenate([s.diffusion, p.diffusion[:, parents]], axis=1),
         birth=np.concatenate([s.birth, np.full(parents.size, s.step, s.birth.dtype)]),  # born next iteration
         fixed=np.concatenate([s.fixed, np.zeros(parents.size, bool)]),
     )
@@ -258,7 +263,7 @@ def step(s: NumpyCells, rules, dt: float, rng, *, radius: float = 3.0, division_
     wants = fx.divide
     if division_limit is not None:
         wants = wants & (near_count <= division_limit)
-    return divide(nxt, wants, fx.direction)
+    return divide(nxt, s, wants, fx.direction, domain)
 
 
 def run(s: NumpyCells, rules, steps: int, dt: float, rng, **settings) -> NumpyCells:
