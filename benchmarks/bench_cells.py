@@ -27,8 +27,9 @@ as comparing the runs' seconds).
 
 Then, per-iteration times against the number of cells (hex grids of ~1k to 100k cells):
 a static reaction-diffusion run (Bard's reaction, no division, no domain: the neighbour
-list is never rebuilt) and a growing one (the leopard's rules, packed domain, division by
-chance 4 / cells: the list is rebuilt on the ~98% of iterations with a division; capacity
+list is never rebuilt) and a growing one (the leopard's rules, a domain packed at the hex
+grid's own 2 sqrt 3 per cell, division by chance 4 / cells: the list is rebuilt on the
+~98% of iterations with a division; capacity
 for 1.5 times the expected divisions); and a profile of one growing iteration at the
 leopard's size (6,240 cells, capacity 6,600): each part of `_step.step` jitted and timed
 alone (median of 20 calls; every figure includes the cost of calling a jitted function,
@@ -59,6 +60,7 @@ from _harness import HERE, in_fresh_processes, machine, markdown_table, median
 RESULTS = HERE / "results" / "bench_cells.md"
 THESIS_SECONDS = {"leopard": 22.298, "moray": 21.122}  # Table A.1, Figs. 7.21 and 7.18
 THESIS_ITERATIONS = {"leopard": 14_000, "moray": 5_000}
+HEX_AREA = 2 * math.sqrt(3)  # area per cell of a hexagonal grid of spacing 2
 THESIS_CELLS = {"leopard": "2,900 -> 6,228", "moray": "20,000"}
 LISTING = {"leopard": "A.18", "moray": "A.17"}
 # Listing A.18's seed cells left in a comment ("other seed cells omitted for brevity")
@@ -238,7 +240,10 @@ def scaling_worker(sizes, quick: bool, numpy_steps: int, numpy_max_cells: int) -
             capacity = n + round(1.5 * DIVISIONS_PER_ITERATION * steps) + 64 if growing else n
             cells = leopard_cells(shape, capacity)
             rules = leopard_rules(DIVISIONS_PER_ITERATION / n if growing else None)
-            settings = dict(domain="packed" if growing else None, division_limit=6 if growing else None)
+            # the packed square at the hexagonal grid's own area per cell (2 sqrt 3), so the
+            # run measures growth, not the grid's first squeeze into the thesis's 3.2
+            settings = dict(domain=mj.cells.Packed(HEX_AREA) if growing else None,
+                            division_limit=6 if growing else None)
             key = jax.random.key(1)
 
             def run():
@@ -252,7 +257,7 @@ def scaling_worker(sizes, quick: bool, numpy_steps: int, numpy_max_cells: int) -
             row = {"cells": n, "capacity": capacity, "kind": kind, "jax": jax_s, "compile": first - jax_s * steps,
                    "divisions": int(out.count) - n}
             if n <= numpy_max_cells:
-                np_settings = dict(domain=mj.cells.Packed() if growing else None,
+                np_settings = dict(domain=mj.cells.Packed(HEX_AREA) if growing else None,
                                    division_limit=settings["division_limit"])
                 row["numpy"] = numpy_seconds_per_iteration(cells_numpy.from_cells(cells), rules, numpy_steps, 0.1,
                                                            **np_settings)
@@ -300,8 +305,8 @@ def profile_worker(quick: bool) -> dict:
         "rules (apply_rules)": lambda: rules_fn(rules, cells, touch, iteration, settings.dt, key),
         "diffusion (diffusion_change)": lambda: diffusion(cells, touch, settings.dt),
         "collision (collision_offset)": lambda: collision(cells, touch),
-        "division (divide)": lambda: divide(cells, wants, fx.direction, iteration),
-        "whole step (_step.step)": lambda: whole(cells, neighbours, rules, settings, key),
+        "division (divide)": lambda: divide(cells, cells, wants, fx.direction, iteration),
+        "whole step (_step.step)": lambda: whole(cells, neighbours, touch, rules, settings, key),
         "(a jitted call doing nothing: dispatch)": lambda: nothing(cells, neighbours, rules, settings, key),
     }
     out = {"cells": int(cells.count), "capacity": capacity, "times": {}}
@@ -313,7 +318,7 @@ def profile_worker(quick: bool) -> dict:
             jax.block_until_ready(fn())
             times.append(time.perf_counter() - t0)
         out["times"][label] = statistics.median(times)
-    nxt, _ = whole(cells, neighbours, rules, settings, key)
+    nxt, _, _ = whole(cells, neighbours, touch, rules, settings, key)
     out["divisions"] = int(nxt.count) - int(cells.count)  # > 0: the profiled step rebuilt the list
     return out
 

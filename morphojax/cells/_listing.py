@@ -78,7 +78,6 @@ from ._state import Cells
 
 CAPACITY_GROWTH = 1.5  # a piece that outgrows the capacity runs again with half as much room again
 MAX_RETRIES = 24  # 1.5 ** 24: from one cell to over 16,000 times as many
-MAX_ROOM = 512  # neighbours per cell or cells per bucket: no tissue of unit cells needs more
 
 
 def _bar(total: int, label: str):
@@ -233,7 +232,7 @@ class Listing:
         start (up to the order of float sums), and the capacity follows the tissue instead
         of being guessed.
         """
-        from ._simulate import BUCKET_SIZE, MAX_NEIGHBOURS, PIECES, simulate_cells
+        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_neighbours, simulate_cells
 
         iterations = [int(i) for i in iterations]
         if not iterations or any(b <= a for a, b in zip(iterations, iterations[1:])) or iterations[0] < 0:
@@ -248,7 +247,9 @@ class Listing:
         grow_cells, grow_search = capacity is None and divides, max_neighbours is None or bucket_size is None
         if capacity is None:
             capacity = int(cells.count) + (int(cells.count) // 4 + 64 if divides else 0)
-        room = [MAX_NEIGHBOURS if max_neighbours is None else max_neighbours,
+        # every iteration pays for each slot of the neighbour list: start from the room the
+        # prepattern needs (8 on a square grid, 6 on a hexagonal one), grown when it overflows
+        room = [max(needed_neighbours(cells) + 2, 8) if max_neighbours is None else max_neighbours,
                 BUCKET_SIZE if bucket_size is None else bucket_size]
         last = iterations[-1]
         piece = max(1, last // PIECES)

@@ -24,6 +24,7 @@ SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move
 MAX_NEIGHBOURS = 20  # a packed or hexagonal tissue has 6-12 cells within 3.3; crowded growth more
 BUCKET_SIZE = 8  # cells per bucket of side 3.3 (a packed tissue averages 3.4)
 PIECES = 50  # a progress bar moves in 50 pieces of the run
+MAX_ROOM = 512  # neighbours per cell or cells per bucket: no tissue of unit cells needs more
 
 
 def simulate_cells(
@@ -156,11 +157,20 @@ def _run(cells: Cells, neighbours, rules, settings: Settings, key, steps: int):
     )
 
     def body(carry, _):
-        cells, neighbours = carry
-        return step(cells, neighbours, rules, settings, key), None
+        return step(*carry, rules, settings, key), None
 
-    (cells, neighbours), _ = jax.lax.scan(body, (cells, neighbours), None, length=steps)
+    touch = contacts(cells, neighbours, settings.influence_radius)
+    (cells, neighbours, _), _ = jax.lax.scan(body, (cells, neighbours, touch), None, length=steps)
     return cells, neighbours
+
+
+def needed_neighbours(cells: Cells, influence_radius: float = INFLUENCE_RADIUS) -> int:
+    """The most neighbours any live cell has within the neighbour list's radius (the
+    influence radius + skin): the smallest `max_neighbours` these cells need now."""
+    search = Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=MAX_ROOM,
+                    bucket_size=MAX_ROOM // 8, table_size=table_size_for(cells.capacity))
+    found = _first_neighbours(cells, Settings(jnp.asarray(1.0), None, float(influence_radius), None, search))
+    return int(jnp.max(jnp.sum(found.index < cells.capacity, axis=1)))
 
 
 def _check_dt(cells: Cells, settings: Settings) -> None:

@@ -1,0 +1,134 @@
+"""Rules evaluated per cell on the current state (thesis 4.8.5, Table 4.1): every rule's
+conditions give a mask, its action adds to the iteration's effects (changes, reactions,
+division requests, mapped values, polarities), all read from the current state so the
+order of cells never matters (thesis 4.1, step 2). Polarization is eq. 4.10."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax import Array
+
+from ._contacts import Contacts
+from ._rules import Always, Chance, Change, Compare, Divide, Map, Polarize, React, Rule, Var, Within
+from ._state import Cells
+
+
+class _Effects(NamedTuple):
+    """What the rules ask for this iteration, accumulated over the rules."""
+
+    conc: Array
+    rates: Array
+    divide: Array
+    direction: Array
+    polarise: Array
+    polarity: Array
+    maps: dict
+
+
+def _value(v, cells: Cells, near_count: Array, iteration: Array, maps: dict):
+    if not isinstance(v, Var):
+        return v
+    if v.kind == "conc":
+        return cells.concentration[cells.index(v.name)]
+    if v.kind == "diff":
+        return cells.diffusion[cells.index(v.name)]
+    if v.kind == "AGE":
+        return (iteration - cells.birth).astype(cells.position.dtype)
+    if v.kind == "BIRTH":
+        return cells.birth.astype(cells.position.dtype)
+    if v.kind == "NEIGHBORS":
+        return near_count.astype(cells.position.dtype)
+    return maps[v.name]
+
+
+_COMPARE = {
+    "==": jnp.equal, "!=": jnp.not_equal, "<": jnp.less,
+    "<=": jnp.less_equal, ">": jnp.greater, ">=": jnp.greater_equal,
+}
+
+
+def _holds(condition, value, key: Array, capacity: int) -> Array:
+    if isinstance(condition, Always):
+        return jnp.ones(capacity, bool)
+    if isinstance(condition, Compare):
+        return jnp.broadcast_to(_COMPARE[condition.op](value(condition.left), value(condition.right)), (capacity,))
+    if isinstance(condition, Within):
+        x = value(condition.value)
+        return jnp.broadcast_to((x >= value(condition.low)) & (x <= value(condition.high)), (capacity,))
+    assert isinstance(condition, Chance)
+    return jax.random.uniform(key, (capacity,)) < value(condition.probability)
+
+
+def _gradient(cells: Cells, touch: Contacts, name: str) -> Array:
+    """Eq. 4.10: sum_j (R_j - R_i) d_j / |d_j|, per cell (C, 2)."""
+    r = cells[name]
+    rise = jnp.where(touch.near, jnp.take(r, touch.index, mode="clip") - r[:, None], 0.0)
+    return jnp.stack([jnp.sum(rise * touch.ux, axis=1), jnp.sum(rise * touch.uy, axis=1)], axis=1)
+
+
+def apply_rules(rules: tuple[Rule, ...], cells: Cells, touch: Contacts, iteration: Array, dt: Array,
+                key: Array) -> _Effects:
+    """The accumulated effects of every rule on the current state (thesis 4.8.5)."""
+    capacity = cells.capacity
+    near_count = touch.count
+    fx = _Effects(
+        conc=jnp.zeros_like(cells.concentration), rates=jnp.zeros_like(cells.diffusion),
+        divide=jnp.zeros(capacity, bool), direction=jnp.zeros_like(cells.polarity),
+        polarise=jnp.zeros(capacity, bool), polarity=cells.polarity, maps={},
+    )
+    alive = cells.alive
+    for k, rule in enumerate(rules):
+        rule_key = jax.random.fold_in(key, k)
+        maps = dict(fx.maps)
+
+        def value(v, maps=maps):
+            return _value(v, cells, near_count, iteration, maps)
+
+        mask = alive & rule.active(iteration)
+        for c, condition in enumerate(rule.when):
+            mask &= _holds(condition, value, jax.random.fold_in(rule_key, c), capacity)
+        action_key = jax.random.fold_in(rule_key, len(rule.when))
+        fx = _act(rule.action, fx, mask, value, cells, touch, dt, action_key, maps)
+    return fx
+
+
+def _uniform(key, shape, amplitude):
+    return amplitude * jax.random.uniform(key, shape, minval=-1.0, maxval=1.0)
+
+
+def _act(action, fx: _Effects, mask: Array, value, cells: Cells, touch: Contacts, dt, key, maps) -> _Effects:
+    capacity = cells.capacity
+    if isinstance(action, Change):
+        amount = jnp.broadcast_to(value(action.amount), (capacity,)) + _uniform(key, (capacity,), action.spread)
+        row = cells.index(action.target.name)
+        delta = jnp.where(mask, amount, 0.0)
+        if action.target.kind == "conc":
+            return fx._replace(conc=fx.conc.at[row].add(delta))
+        return fx._replace(rates=fx.rates.at[row].add(delta))
+    if isinstance(action, React):
+        rows = jnp.asarray([cells.index(name) for name in action.species])
+        # cells the rule skips (and unused capacity, all zeros) react on a harmless 1, so a
+        # reaction singular at 0 (Gierer-Meinhardt) leaves no NaN in the gradient
+        x = jnp.where(mask, cells.concentration[rows], 1.0)
+        rate = action.model.reaction(x) * (dt * value(action.scale))
+        return fx._replace(conc=fx.conc.at[rows].add(jnp.where(mask, rate, 0.0)))
+    if isinstance(action, Divide):
+        first = mask & ~fx.divide  # the first divide rule that fires sets the direction
+        angle = action.direction + _uniform(key, (capacity,), action.spread)
+        return fx._replace(divide=fx.divide | mask, direction=jnp.where(first, angle, fx.direction))
+    if isinstance(action, Map):
+        low, high, a, b = (value(v) for v in (action.low, action.high, action.out_low, action.out_high))
+        span = jnp.where(high != low, high - low, 1.0)
+        out = jnp.clip(a + (value(action.source) - low) * (b - a) / span, jnp.minimum(a, b), jnp.maximum(a, b))
+        previous = maps.get(action.name, jnp.zeros(capacity, cells.position.dtype))
+        new_maps = dict(maps)
+        new_maps[action.name] = jnp.where(mask, jnp.broadcast_to(out, (capacity,)), previous)
+        return fx._replace(maps=new_maps)
+    assert isinstance(action, Polarize)
+    p = _gradient(cells, touch, action.reagent)
+    steered = mask & (jnp.sum(p * p, axis=1) > 0)
+    angle = jnp.arctan2(p[:, 1], jnp.where(steered, p[:, 0], 1.0))
+    return fx._replace(polarise=fx.polarise | steered, polarity=jnp.where(steered, angle, fx.polarity))
