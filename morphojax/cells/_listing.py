@@ -77,7 +77,19 @@ from ._space import Box, Packed
 from ._state import Cells
 
 CAPACITY_GROWTH = 1.5  # a piece that outgrows the capacity runs again with half as much room again
+ROOM_GROWTH = 1.5  # and so does the neighbour search (every slot costs every iteration)
 MAX_RETRIES = 24  # 1.5 ** 24: from one cell to over 16,000 times as many
+
+
+def _more_room(room, need, given) -> list[int]:
+    """Half as much again of the search room that `need` (what the cells need now) shows
+    ran out, and at least that need; both when neither does (the crowd has passed); never
+    a room the caller gave."""
+    short = [need[0] + 2 > room[0], need[1] > room[1]]
+    if not any(short):
+        short = [True, True]
+    return [max(math.ceil(ROOM_GROWTH * r), n + 2 * (k == 0)) if s and g is None else r
+            for k, (r, n, s, g) in enumerate(zip(room, need, short, given))]
 
 
 def _bar(total: int, label: str):
@@ -226,13 +238,14 @@ class Listing:
 
         The run goes in pieces (a fiftieth of it, and the snapshots). A piece whose
         divisions overflow a capacity you did not give is run again from its start with
-        half as much room again, and one whose neighbour search overflows with twice the
-        room you did not give (`max_neighbours`, `bucket_size`): the random draws depend on
+        half as much room again, and one whose neighbour search overflows with half as much
+        again of the room you did not give (`max_neighbours`, at least what the cells then
+        need, and `bucket_size`): the random draws depend on
         the iteration only, so the cells are those of a run that had the room from the
         start (up to the order of float sums), and the capacity follows the tissue instead
         of being guessed.
         """
-        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_neighbours, simulate_cells
+        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_room, simulate_cells
 
         iterations = [int(i) for i in iterations]
         if not iterations or any(b <= a for a, b in zip(iterations, iterations[1:])) or iterations[0] < 0:
@@ -249,8 +262,9 @@ class Listing:
             capacity = int(cells.count) + (int(cells.count) // 4 + 64 if divides else 0)
         # every iteration pays for each slot of the neighbour list: start from the room the
         # prepattern needs (8 on a square grid, 6 on a hexagonal one), grown when it overflows
-        room = [max(needed_neighbours(cells) + 2, 8) if max_neighbours is None else max_neighbours,
-                BUCKET_SIZE if bucket_size is None else bucket_size]
+        need = needed_room(cells)
+        room = [max(need[0] + 2, 8) if max_neighbours is None else max_neighbours,
+                max(need[1], BUCKET_SIZE) if bucket_size is None else bucket_size]
         last = iterations[-1]
         piece = max(1, last // PIECES)
         ends = sorted(set(iterations) | set(range(piece, last, piece)))
@@ -271,9 +285,8 @@ class Listing:
                         retries += 1  # this piece again, from its start, with more room
                         if crowded:
                             out = out.with_capacity(math.ceil(CAPACITY_GROWTH * out.capacity))
-                        if cramped:  # twice the room you did not give
-                            room = [room[0] if max_neighbours else 2 * room[0],
-                                    room[1] if bucket_size else 2 * room[1]]
+                        if cramped:  # more of the room that ran out (both if the crowd has passed)
+                            room = _more_room(room, needed_room(trial), (max_neighbours, bucket_size))
                         continue
                     if bar is not None:
                         bar.update(int(trial.step) - int(out.step))

@@ -123,6 +123,27 @@ def find_neighbours(position: Array, count: Array, radius: float, max_neighbours
     return index, overflow
 
 
+def needed_room(position, count: int, radius: float, table_size: int) -> tuple[int, int]:
+    """(max_neighbours, bucket_size) that a search of these cells needs (NumPy, on the
+    host): the most cells any live cell has within `radius`, and the most cells in three
+    consecutive buckets of a row, divided by three, rounded up (`find_neighbours`'s runs)."""
+    xy = np.asarray(position)[: int(count)]
+    if len(xy) == 0:
+        return 0, 0
+    side_count = int(np.floor(np.sqrt(table_size)))
+    low = xy.min(axis=0)
+    side = max(radius, float((xy.max(axis=0) - low).max()) / (side_count - 1))
+    bucket = np.clip(np.floor((xy - low) / side).astype(np.int64), 0, side_count - 1)
+    grid = np.zeros((side_count, side_count + 2), np.int64)
+    np.add.at(grid, (bucket[:, 1], bucket[:, 0] + 1), 1)
+    runs = grid[:, :-2] + grid[:, 1:-1] + grid[:, 2:]  # three buckets of a row around each
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(xy).query_pairs(radius, output_type="ndarray")
+    counts = np.bincount(pairs.ravel(), minlength=len(xy)) if len(pairs) else np.zeros(len(xy), np.int64)
+    return int(counts.max()), int(-(-runs.max() // 3))
+
+
 def _row_cumsum(flags: Array) -> Array:
     """Running count of True along each row, as a product with a triangular matrix: on a
     CPU, twice as fast as `jnp.cumsum` (a reduce-window there); exact in float32 while

@@ -14,6 +14,7 @@ from .._checks import as_float_array, check_count, check_finite, check_range, is
 from .._status import SimulationError
 from ..models import AbstractModel
 from ._neighbours import Search, table_size_for
+from ._neighbours import needed_room as _needed_room
 from ._rules import Chance, Change, Divide, React, Rule, check_rules
 from ._space import as_domain
 from ._state import Cells
@@ -164,13 +165,10 @@ def _run(cells: Cells, neighbours, rules, settings: Settings, key, steps: int):
     return cells, neighbours
 
 
-def needed_neighbours(cells: Cells, influence_radius: float = INFLUENCE_RADIUS) -> int:
-    """The most neighbours any live cell has within the neighbour list's radius (the
-    influence radius + skin): the smallest `max_neighbours` these cells need now."""
-    search = Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=MAX_ROOM,
-                    bucket_size=MAX_ROOM // 8, table_size=table_size_for(cells.capacity))
-    found = _first_neighbours(cells, Settings(jnp.asarray(1.0), None, float(influence_radius), None, search))
-    return int(jnp.max(jnp.sum(found.index < cells.capacity, axis=1)))
+def needed_room(cells: Cells, influence_radius: float = INFLUENCE_RADIUS) -> tuple[int, int]:
+    """(max_neighbours, bucket_size) these cells need now in `simulate_cells`'s search
+    (neighbours within the influence radius + skin)."""
+    return _needed_room(cells.position, cells.count, float(influence_radius) + SKIN, table_size_for(cells.capacity))
 
 
 def _check_dt(cells: Cells, settings: Settings) -> None:
