@@ -163,7 +163,7 @@ _cells("thesis-fig7.20", "fig7.20", "thesis Fig. 7.20 (listing of section 7.4)",
        "uniform growth with saturated RD (U limit 6.3): the pattern is kept and evolves", quick=(0, 300))
 _cells("thesis-fig7.21", "A.18", "thesis Figs. 7.21-7.22 (Listing A.18)",
        "the thesis's leopard: saturated RD on a packed, growing hexagonal tissue; rosettes from growth",
-       quick=(600,), texture=True, edit=lambda text: _add_before_rules(
+       snapshots=(4000, 8000, 11000, 14000), quick=(600,), texture=True, edit=lambda text: _add_before_rules(
            text, "".join(f"set cell {i} chemical V conc 10\n" for i in A18_OMITTED_SEEDS) + "\n"))
 
 
