@@ -24,6 +24,8 @@ from jax import Array
 from .._checks import default_float
 
 NO_STEP = -1  # the value of a *_step field while nothing has happened
+STATUS_FIELDS = ("overflow_step", "neighbour_overflow_step", "nonfinite_step")  # what went wrong, and when
+PER_REAGENT = ("concentration", "diffusion")  # buffers of shape (species, capacity)
 
 
 class Cells(eqx.Module):
@@ -131,19 +133,10 @@ class Cells(eqx.Module):
 
     # ---- building -----------------------------------------------------------------
     def with_capacity(self, capacity: int) -> "Cells":
-        """The same cells in buffers of `capacity` entries (at least `count`)."""
-        n = int(self.count)
-        if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < n:
-            raise ValueError(f"capacity must be an integer >= the number of cells ({n}) (got {capacity!r})")
-        data = self.live()
-        resized = make_cells(
-            self.species, data["position"], concentration=data["concentration"], diffusion=data["diffusion"],
-            polarity=data["polarity"], polarised=data["polarised"], birth=data["birth"], fixed=data["fixed"],
-            lower=np.asarray(self.lower), upper=np.asarray(self.upper), anisotropic=self.anisotropic,
-            capacity=capacity, step=int(self.step),
-        )
-        return resized.replace(overflow_step=self.overflow_step, neighbour_overflow_step=self.neighbour_overflow_step,
-                               nonfinite_step=self.nonfinite_step)
+        """The same cells, and their run's status, in buffers of `capacity` entries (at
+        least `count`)."""
+        resized = concatenate([self], capacity)
+        return resized.replace(**{name: getattr(self, name) for name in STATUS_FIELDS})
 
     def replace(self, **changes) -> "Cells":
         """A copy with some fields replaced (e.g. `cells.replace(upper=...)`)."""
@@ -264,16 +257,10 @@ def concatenate(groups: Sequence[Cells], capacity: int | None = None) -> Cells:
         if g.species != first.species:
             raise ValueError(f"every group must carry the same reagents (got {first.species} and {g.species})")
     parts = [g.live() for g in groups]
-    total = sum(p["position"].shape[0] for p in parts)
+    arrays = {name: np.concatenate([p[name] for p in parts], axis=1 if name in PER_REAGENT else 0)
+              for name in parts[0]}
+    position = arrays.pop("position")
     return make_cells(
-        first.species,
-        np.concatenate([p["position"] for p in parts]),
-        concentration=np.concatenate([p["concentration"] for p in parts], axis=1),
-        diffusion=np.concatenate([p["diffusion"] for p in parts], axis=1),
-        polarity=np.concatenate([p["polarity"] for p in parts]),
-        polarised=np.concatenate([p["polarised"] for p in parts]),
-        birth=np.concatenate([p["birth"] for p in parts]),
-        fixed=np.concatenate([p["fixed"] for p in parts]),
-        lower=np.asarray(first.lower), upper=np.asarray(first.upper), anisotropic=first.anisotropic,
-        capacity=total if capacity is None else capacity, step=int(first.step),
+        first.species, position, **arrays, lower=np.asarray(first.lower), upper=np.asarray(first.upper),
+        anisotropic=first.anisotropic, capacity=len(position) if capacity is None else capacity, step=int(first.step),
     )
