@@ -92,12 +92,6 @@ def _more_room(room, need, given) -> list[int]:
             for k, (r, n, s, g) in enumerate(zip(room, need, short, given))]
 
 
-def _bar(total: int, label: str):
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc=label, unit="iteration", leave=False)
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class Listing:
     """A parsed experiment (thesis 4.8): read it with `load_listing`.
@@ -245,7 +239,7 @@ class Listing:
         start (up to the order of float sums), and the capacity follows the tissue instead
         of being guessed.
         """
-        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_room, simulate_cells
+        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_room, progress_bar, simulate_cells
 
         iterations = [int(i) for i in iterations]
         if not iterations or any(b <= a for a, b in zip(iterations, iterations[1:])) or iterations[0] < 0:
@@ -268,7 +262,7 @@ class Listing:
         last = iterations[-1]
         piece = max(1, last // PIECES)
         ends = sorted(set(iterations) | set(range(piece, last, piece)))
-        bar = _bar(last, self.name if progress is True else progress) if progress else None
+        bar = progress_bar(last, self.name if progress is True else progress) if progress else None
         out, shots, retries = cells.with_capacity(int(capacity)), [], 0
         try:
             for end in ends:

@@ -18,7 +18,7 @@ from ._neighbours import needed_room as _needed_room
 from ._rules import Chance, Change, Divide, React, Rule, check_rules
 from ._space import as_domain
 from ._state import Cells
-from ._step import Settings, contacts, step
+from ._step import Settings, contacts, harmonic_rate, step
 
 INFLUENCE_RADIUS = 3.0  # thesis 4.2: the six hexagonal or eight Moore neighbours of unit-radius cells
 SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move of 0.15
@@ -129,11 +129,8 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
     neighbours = _first_neighbours(cells, settings)
     if not progress or steps < 2 or not is_concrete(cells, rules, settings):
         return _run(cells, neighbours, rules, settings, key, steps)[0]
-    from tqdm.auto import tqdm
-
     piece = max(1, steps // PIECES)
-    label = progress if isinstance(progress, str) else "cells"
-    with tqdm(total=steps, desc=label, unit="iteration", leave=False) as bar:
+    with progress_bar(steps, progress if isinstance(progress, str) else "cells") as bar:
         done = 0
         while done < steps:
             n = min(piece, steps - done)
@@ -143,6 +140,13 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
             if int(cells.nonfinite_step) >= 0:
                 break
     return cells
+
+
+def progress_bar(total: int, label: str):
+    """The bar every cell run shows: `total` iterations, named `label`, gone when done."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=label, unit="iteration", leave=False)
 
 
 @eqx.filter_jit
@@ -189,10 +193,8 @@ def _exchange_spectral_radius(cells: Cells, neighbours, settings: Settings, iter
     on the live cells (isotropic rates: anisotropy only lowers them), by power iteration
     (the operator is symmetric and positive semi-definite)."""
     touch = contacts(cells, neighbours, settings.influence_radius)
-    rate_i = cells.diffusion[:, :, None]
     rate_j = jnp.take(cells.diffusion, touch.index, axis=1, mode="clip")
-    total = rate_i + rate_j
-    weight = jnp.where(touch.near & (total > 0), 2 * rate_i * rate_j / jnp.where(total > 0, total, 1.0), 0.0)
+    weight = jnp.where(touch.near, harmonic_rate(cells.diffusion[:, :, None], rate_j), 0.0)
 
     def apply(x):
         return jnp.sum(weight * (x[:, :, None] - jnp.take(x, touch.index, axis=1, mode="clip")), axis=-1)

@@ -48,6 +48,14 @@ class Settings(eqx.Module):
 
 
 # ---- diffusion and collision --------------------------------------------------------
+def harmonic_rate(rate_i: Array, rate_j: Array) -> Array:
+    """Eq. 4.7: the link's rate 2 D_i D_j / (D_i + D_j); 0 where both are 0 (with a
+    gradient that stays finite there)."""
+    total = rate_i + rate_j
+    positive = total > 0
+    return jnp.where(positive, 2 * rate_i * rate_j / jnp.where(positive, total, 1.0), 0.0)
+
+
 def diffusion_change(cells: Cells, touch: Contacts, dt: Array) -> Array:
     """dt sum_j D_ij (R_j - R_i) per reagent and cell (eqs. 4.7-4.8), shape (species, C).
 
@@ -66,9 +74,7 @@ def diffusion_change(cells: Cells, touch: Contacts, dt: Array) -> Array:
         rate_i, rate_j = rate[:, None], jnp.take(rate, idx, mode="clip")
         if steered:
             rate_i, rate_j = rate_i * align_i, rate_j * align_j
-        total = rate_i + rate_j
-        positive = total > 0
-        combined = jnp.where(positive, 2 * rate_i * rate_j / jnp.where(positive, total, 1.0), 0.0)
+        combined = harmonic_rate(rate_i, rate_j)
         r = cells.concentration[s]
         exchange = jnp.where(touch.near, combined * (jnp.take(r, idx, mode="clip") - r[:, None]), 0.0)
         change.append(jnp.sum(exchange, axis=-1))
