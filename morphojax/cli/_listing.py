@@ -18,8 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-import morphojax as mj
 from morphojax.cells import LISTINGS, load_listing
+from morphojax.presets._cells import write_outputs
 
 from ._output import picture_path, report
 
@@ -61,16 +61,8 @@ def run(args) -> int:
     t0 = time.perf_counter()
     cells = listing.run(seed=seed, steps=steps, progress=not args.no_progress)
     seconds = time.perf_counter() - t0
-    cmap = listing.colormap or "inferno"
-    if args.texture:
-        picture = mj.cells_texture(cells, args.chemical, size=listing.texture or 512, cmap=cmap, method="natural")
-    else:
-        picture = mj.render_cells(cells, args.chemical, size=512, cmap=cmap)
-    picture.save(out)
-    metadata = {"kind": "cells", "listing": listing.name, "text": listing.text, "seed": seed, "steps": steps,
-                "dt": listing.dt, "warnings": list(listing.warnings)}
-    npz = mj.save_cells(out.with_suffix(".npz"), cells, metadata)
-    svg = mj.write_cells_svg(cells, out.with_suffix(".svg"), args.chemical, cmap=cmap)
+    _, npz, svg = write_outputs(listing, [cells], [steps], out, texture=args.texture, reagent=args.chemical,
+                                metadata={"seed": seed, "steps": steps})
     for warning in listing.warnings:
         print(f"{listing.name}: warning: {warning}", file=sys.stderr)
     report({"listing": listing.name, "seed": seed, "steps": steps, "cells": int(cells.count),

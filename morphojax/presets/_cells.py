@@ -84,23 +84,32 @@ def _run_cells(item: CellPreset, seed: int, quick: bool, out: Path, frames: bool
     t0 = time.perf_counter()
     cells = listing.snapshots(shots, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
+    files = write_outputs(listing, cells, shots, out, texture=item.texture, size=360,
+                          metadata={"preset": item.name, "seed": seed, "iterations": list(shots), "quick": quick})
+    return {"listing": listing.name, "iterations": list(shots), "cells": [int(c.count) for c in cells],
+            "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
+
+
+def write_outputs(listing, cells, iterations, out: Path, *, texture: bool, reagent=None, size=512,
+                  metadata: dict) -> tuple[Path, Path, Path]:
+    """A listing's run as files: the PNG `out` (the cells through the listing's colour map,
+    as discs of `size` pixels or the texture of its `texture size`; a row of them for
+    several snapshots), `out.npz` (the last cells with the listing's text and `metadata`)
+    and `out.svg`. Shared by the presets and `morphojax listing`."""
     cmap = listing.colormap or "inferno"
-    if item.texture:
-        size = listing.texture or (512, 512)
-        tiles = [mj.cells_texture(c, size=size, cmap=cmap, method="natural") for c in cells]
+    if texture:
+        tiles = [mj.cells_texture(c, reagent, size=listing.texture or size, cmap=cmap, method="natural") for c in cells]
     else:
-        tiles = [mj.render_cells(c, size=360, cmap=cmap) for c in cells]
-    labels = [f"iteration {s}" for s in shots]
-    picture = tiles[0] if len(tiles) == 1 else mj.montage(tiles, len(tiles), col_labels=labels)
+        tiles = [mj.render_cells(c, reagent, size=size, cmap=cmap) for c in cells]
+    picture = tiles[0] if len(tiles) == 1 else mj.montage(tiles, len(tiles),
+                                                          col_labels=[f"iteration {i}" for i in iterations])
     picture.save(out)
     final = cells[-1]
-    metadata = {"kind": "cells", "preset": item.name, "listing": listing.name, "text": listing.text,
-                "seed": seed, "iterations": list(shots), "quick": quick, "dt": listing.dt,
-                "warnings": list(listing.warnings)}
-    npz = save_cells(out.with_suffix(".npz"), final, metadata)
-    svg = write_cells_svg(final, out.with_suffix(".svg"), cmap=cmap)
-    return {"listing": listing.name, "iterations": list(shots), "cells": [int(c.count) for c in cells],
-            "seconds_run": round(seconds, 3), "files": [str(out), str(npz), str(svg)]}
+    meta = {"kind": "cells", "listing": listing.name, "text": listing.text, "dt": listing.dt,
+            "warnings": list(listing.warnings), **metadata}
+    npz = save_cells(out.with_suffix(".npz"), final, meta)
+    svg = write_cells_svg(final, out.with_suffix(".svg"), reagent, cmap=cmap)
+    return out, npz, svg
 
 
 def _listing_shots(listing) -> tuple:
@@ -173,4 +182,4 @@ def cells_picture(path: Path):
     return mj.render_cells(cells, size=512), meta
 
 
-__all__ = ["CellPreset", "cells_picture"]
+__all__ = ["CellPreset", "cells_picture", "write_outputs"]
