@@ -41,6 +41,7 @@ CASES = {
     "bounded-ua": ("turing", {"ratio": 6.0, "scale": 1.5, "upper_a": 6.0}, ["ratio", "scale", "upper_a"]),
     "gray-scott": ("gray-scott", {"feed": 0.0367, "kill": 0.0649, "diffusion_scale": 0.5}, None),
     "bard": ("bard", {"alpha": 16.0, "beta": 12.0, "diffusion_scale": 0.5}, None),
+    "oriented": ("anisotropic-turing", {"ratio": 20.0, "scale": 1.2, "angle": 0.6}, None),
 }
 
 
@@ -55,7 +56,8 @@ def resim_distance(sim, params, target_stats, noise, cfg, seeds):
 def run_case(name, shape=(64, 64), auto=False, repeat=0):
     family, truth, names = CASES[name]
     fam = fitting.FAMILIES[family]
-    sim = fitting.Simulator(fam.make(shape), shape=shape, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap)
+    sim = fitting.Simulator(fam.make(shape), shape=shape, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap,
+                            anisotropic=fam.anisotropic)
     target = np.asarray(sim.run(truth, jax.random.key(10_000 + repeat)))  # a seed the fit never uses
     t0 = time.perf_counter()
     result = fitting.fit(target, model="auto" if auto else family, fit=names, shape=shape, progress=False)
@@ -100,8 +102,13 @@ def main():
                      f"{', '.join(r['undetermined']) or '-'} | {r['fit_distance']:.1f} / {r['noise_floor']:.1f} = "
                      f"{r['ratio_to_floor']:.2f}x | {r['seconds']:.0f} (load {r['load']:.1f}) |")
     cov = [c for r in rows for c in r["covered"].values()]
-    auto_rows = [r for r in rows if r["auto"]]
+    ratios = sorted(r["ratio_to_floor"] for r in rows)
     lines.append("")
+    lines.append(f"Median distance over the floor: {np.median(ratios):.2f}x; median time "
+                 f"{np.median([r['seconds'] for r in rows if not r['auto']]):.0f} s with the family given"
+                 + (f", {np.median([r['seconds'] for r in rows if r['auto']]):.0f} s with auto"
+                    if any(r["auto"] for r in rows) else ""))
+    auto_rows = [r for r in rows if r["auto"]]
     lines.append(f"Coverage of the 95% intervals: {sum(cov)}/{len(cov)}"
                  + (f"; auto picked the true family in {sum(r['picked'] == r['family'] for r in auto_rows)}/"
                     f"{len(auto_rows)} cases" if auto_rows else ""))

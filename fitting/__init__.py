@@ -16,8 +16,8 @@ dominated by where single spots sit and grow without bound, so only the final re
 differentiated); Nelder-Mead takes over when gradients do not help.
 """
 
-from ._auto import penalised
-from ._families import FAMILIES, Family, family
+from ._auto import ORIENTED_COHERENCE, penalised
+from ._families import FAMILIES, Family, family, stripe_angle
 from ._fit import DEFAULTS, METHODS, FitResult, fit, gradient_descent, progress_default
 from ._palette import colourise, kmeans, photo_palette
 from ._uncertainty import laplace_intervals
@@ -35,6 +35,7 @@ __all__ = [
     "Family",
     "FitResult",
     "METHODS",
+    "ORIENTED_COHERENCE",
     "ParamSpace",
     "Simulator",
     "StatsConfig",
@@ -58,5 +59,6 @@ __all__ = [
     "region_stats",
     "residuals",
     "stats_vector",
+    "stripe_angle",
     "texture_stats",
 ]

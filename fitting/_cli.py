@@ -51,13 +51,17 @@ def register(subparsers) -> None:
                    help="photo pixels per lattice cell (default: estimated, 10 cells per pattern wavelength)")
     p.add_argument("--no-binarise", dest="binarise", action="store_false", default=D["binarise"],
                    help="compare raw intensities instead of soft pigment maps (the default)")
-    p.add_argument("--orientation", action="store_true", default=D["orientation"],
-                   help="add the structure-tensor orientation (stripes)")
+    p.add_argument("--orientation", dest="orientation", action="store_true", default=D["orientation"],
+                   help="compare the structure-tensor orientation of stripes (the default)")
+    p.add_argument("--no-orientation", dest="orientation", action="store_false",
+                   help="leave the orientation out of the statistics")
     p.add_argument("--shape", type=int, nargs=2, default=D["shape"], metavar=("ROWS", "COLS"))
     p.add_argument("--steps", type=int, default=D["steps"], help="steps per simulation (default: the family's)")
     p.add_argument("--window", type=int, default=D["window"],
                    help="steps differentiated at the end of each run (default: the family's)")
     p.add_argument("--seeds", type=int, default=D["seeds"], help="simulations averaged per evaluation")
+    p.add_argument("--design-seeds", type=int, default=D["design_seeds"],
+                   help="simulations averaged per point of the global design (at most --seeds)")
     p.add_argument("--design", type=int, default=D["n_design"], help="points per design round (default 12 per parameter)")
     p.add_argument("--rounds", type=int, default=D["rounds"], help="refinement rounds of the design")
     p.add_argument("--keep", type=int, default=D["keep"], help="local searches from the best design points")
@@ -94,7 +98,8 @@ def run(args) -> int:
     target = fitting.load_target(args.photo, crop=crop, channel=args.channel, invert=args.invert,
                                  cell_pixels=args.cell_pixels)
     result = fitting.fit(target, model=args.model, fit=args.fit, fixed=fixed, bounds=bounds, shape=tuple(args.shape),
-                         steps=args.steps, window=args.window, seeds=args.seeds, seed=args.seed, n_design=args.design,
+                         steps=args.steps, window=args.window, seeds=args.seeds, design_seeds=args.design_seeds,
+                         seed=args.seed, n_design=args.design,
                          rounds=args.rounds, keep=args.keep, method=args.method, max_steps=args.max_steps,
                          stats=fitting.StatsConfig(binarise=args.binarise, orientation=args.orientation),
                          progress=args.progress)

@@ -2,7 +2,9 @@
 
 1. Target statistics (`texture_stats` of the target field).
 2. Global stage: a coarse design (Latin hypercube or grid) over the parameter bounds,
-   evaluated as one vmapped batch (design points x seeds), keeping the best few.
+   evaluated as one vmapped batch (design points x `design_seeds` seeds); each point is
+   also moved along the family's length parameter to the target's wavelength. Then
+   `rounds` Latin hypercubes in boxes around the best `keep` points (not moved again).
 3. Noise: at the best design point the seed-to-seed spread of each statistic is measured,
    so the loss is in units of simulation noise (a diagonal synthetic likelihood).
 4. Local stage from each kept point: an Optimistix solver on the unconstrained
@@ -122,9 +124,9 @@ class _Recorder:
 
 
 # One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
-DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4, "seed": 0,
-            "n_design": None, "rounds": 2, "keep": 2, "method": "bfgs", "max_steps": 40, "binarise": True,
-            "orientation": False, "progress": None}
+DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4, "design_seeds": 2, "seed": 0,
+            "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs", "max_steps": 40, "binarise": True,
+            "orientation": True, "progress": None}
 
 
 def progress_default() -> bool:
@@ -168,6 +170,7 @@ def _resolve(model, names, shape):
 
 def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bounds=None, shape=DEFAULTS["shape"],
         steps: int | None = DEFAULTS["steps"], window: int | None = DEFAULTS["window"], seeds: int = DEFAULTS["seeds"],
+        design_seeds: int = DEFAULTS["design_seeds"],
         seed: int = DEFAULTS["seed"], design: str = "lhs", n_design: int | None = DEFAULTS["n_design"],
         rounds: int = DEFAULTS["rounds"], keep: int = DEFAULTS["keep"], method: str = DEFAULTS["method"],
         max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
@@ -180,8 +183,8 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         target: a `Target` (see `load_target`), an image path, or a 2D array at lattice
             resolution (normalised by its quantiles like a photo).
         model: "auto" (screen every family, fit the best `top` in full, rank them; see
-            `fitting._auto`), a family name ("turing", "bard", "gray-scott",
-            "reinforcement", "leopard"; `fitting.FAMILIES`), another model name, a model,
+            `fitting._auto`), a family name ("turing", "anisotropic-turing", "bard",
+            "gray-scott", "reinforcement", "leopard"; `fitting.FAMILIES`), another model name, a model,
             or an `Experiment` (growing and multi-phase runs; see `Simulator` for names).
         fit: names of the parameters to fit; None fits the family's defaults (with "auto",
             names given apply to each family that has them).
@@ -189,13 +192,16 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
             family's (or `fitting.DEFAULT_BOUNDS`).
         shape: simulated lattice (rows, cols); steps / window: steps per simulation and how
             many of the last are differentiated (None: the family's).
-        seeds: simulations averaged per evaluation (vmapped); seed: the fit's random seed.
+        seeds: simulations averaged per evaluation (vmapped); design_seeds: the global
+            stage's (at most `seeds`: it only has to find the basin, and it is most of the
+            simulations); seed: the fit's random seed.
         design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
             n_design points (default 12 per fitted parameter), then `rounds` Latin hypercubes
             in boxes (halving each round) around the best `keep`, which start local searches.
         method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
             iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
-        stats: which statistics and how they are weighted (default `StatsConfig()`: pigment maps).
+        stats: which statistics and how they are weighted (default `StatsConfig()`: pigment
+            maps, with orientation).
         length_scale: the fitted parameter that moves the wavelength ("family": the family's
             own, e.g. Turing's `scale`); the global stage moves each design point along it
             to the target's dominant wavelength (None to disable).
@@ -214,7 +220,8 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     if not isinstance(target, Target):  # a path, or an array already at lattice resolution
         target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
     options = dict(fixed=fixed, bounds=bounds, shape=shape, steps=steps, window=window, seeds=seeds, seed=seed,
-                   design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
+                   design_seeds=design_seeds, design=design, n_design=n_design, rounds=rounds, keep=keep,
+                   method=method, max_steps=max_steps,
                    fallback=fallback, stats=stats, boundary=boundary, species=species, batch_size=batch_size,
                    noise_seeds=noise_seeds, learning_rate=learning_rate, length_scale=length_scale,
                    intervals=intervals)
@@ -225,13 +232,14 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     return fit_one(target, model, _names(fit), progress=progress, simulator=simulator, **options)
 
 
-def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds, seed, design, n_design, rounds,
+def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds, seed, design_seeds, design,
+            n_design, rounds,
             keep, method, max_steps, fallback, stats, boundary, species, batch_size, noise_seeds, learning_rate,
             length_scale, intervals, progress, simulator=None, stage_prefix="", screen_only=False) -> FitResult:
     """One family's (or model's) fit; `fit` without "auto". `target` is a `Target`."""
     fam, template, names, fam_bounds = _resolve(model, names, shape)
     n_design = 12 * max(len(names), 1) if n_design is None else n_design
-    for name, value, low in (("seeds", seeds, 1), ("n_design", n_design, 1), ("keep", keep, 1),
+    for name, value, low in (("seeds", seeds, 1), ("design_seeds", design_seeds, 1), ("n_design", n_design, 1), ("keep", keep, 1),
                              ("max_steps", max_steps, 0), ("batch_size", batch_size, 1)):
         if int(value) < low:
             raise ValueError(f"{name} must be an integer >= {low} (got {value!r})")
@@ -241,9 +249,14 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     window = int(window if window is not None else min(fam.window if fam is not None else 1000, steps))
     dt_cap = fam.dt_cap if fam is not None else 0.01
     sim = simulator or Simulator(template, shape=tuple(shape), steps=steps, window=window, species=species,
-                                 boundary=boundary, fixed=fixed_tuple(fixed), dt_cap=dt_cap)
+                                 boundary=boundary, fixed=fixed_tuple(fixed), dt_cap=dt_cap,
+                                 anisotropic=fam.anisotropic if fam is not None else ())
     sim.check_names(names + [k for k, _ in sim.fixed])
     all_bounds = {n: fam_bounds[n] for n in names if n in fam_bounds}
+    if "angle" in names and sim.anisotropic:  # the half-turn centred on the target's stripes
+        from ._families import orientation_bounds
+
+        all_bounds["angle"] = orientation_bounds(target.field)
     all_bounds.update({n: b for n, b in (bounds or {}).items() if n in names})
     space = ParamSpace.build(names, all_bounds)
     if length_scale == "family":
@@ -259,7 +272,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     from ._progress import Progress
 
     label = stage_prefix + (fam.name if fam is not None else "fit")
-    total = n_design * (1 + int(rounds)) * (2 if length_scale in names else 1) + keep * max(max_steps, 1) * 2
+    total = n_design * (1 + int(rounds) + (1 if length_scale in names else 0)) + keep * max(max_steps, 1) * 2
     bar = Progress(label, total) if progress else None
     rec = _Recorder(bar)
     _RECORDERS.append(rec)
@@ -267,7 +280,8 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
         result = _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, seed=seed,
                       design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
                       fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
-                      length_scale=length_scale, length_power=power, seeds=seeds, intervals=intervals,
+                      length_scale=length_scale, length_power=power, seeds=seeds,
+                      design_keys=keys[: min(int(design_seeds), int(seeds))], intervals=intervals,
                       screen_only=screen_only)
     finally:
         _RECORDERS.remove(rec)
@@ -281,14 +295,15 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
 
 def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, *, seed, design, n_design, rounds,
          keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, length_power,
-         seeds, intervals, screen_only=False):
+         seeds, design_keys, intervals, screen_only=False):
     # ---- global stage: a coarse design, then `rounds` finer designs around the best ------
     t0 = time.perf_counter()
 
     def run_batch(thetas):
         pad = (-len(thetas)) % batch_size
         padded = np.concatenate([thetas, np.repeat(thetas[-1:], pad, 0)]) if pad else thetas
-        out = [_design_batch(sim, space, stats, jnp.asarray(padded[i: i + batch_size], jnp.float32), keys, tstats)
+        out = [_design_batch(sim, space, stats, jnp.asarray(padded[i: i + batch_size], jnp.float32), design_keys,
+                             tstats)
                for i in range(0, len(padded), batch_size)]
         vals = np.concatenate([np.asarray(o[0]) for o in out])[: len(thetas)]
         lams = np.concatenate([np.asarray(o[1]) for o in out])[: len(thetas)]
@@ -296,13 +311,13 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     length = names.index(length_scale) if length_scale in names else None
 
-    def evaluate(unit_points):
-        """Losses at the points; with a length-scale parameter, each point is first moved
-        along it to the value whose dominant wavelength matches the target's (wavelength ~
-        length ** length_power, the family's declaration)."""
+    def evaluate(unit_points, move):
+        """Losses at the points; with a length-scale parameter and `move`, each point is
+        also moved along it to the value whose dominant wavelength matches the target's
+        (wavelength ~ length ** length_power, the family's declaration), keeping the better."""
         thetas = np.asarray(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
         vals, lams = run_batch(thetas)
-        if length is not None:
+        if length is not None and move:
             factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** (
                 1.0 / length_power)
             moved = thetas.copy()
@@ -321,7 +336,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     rng = np.random.default_rng(seed)
     rec.stage = "design"
-    all_unit, thetas, losses = evaluate(space.design(n_design, design, seed))
+    all_unit, thetas, losses = evaluate(space.design(n_design, design, seed), move=True)
     half = 0.25
     for _ in range(int(rounds)):
         best_u = all_unit[np.argsort(losses)[:keep]]
@@ -329,7 +344,8 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         for u in best_u:  # a Latin hypercube in a box around each of the best so far
             box = space.design(max(2, n_design // keep), "lhs", int(rng.integers(1 << 30)))
             local.append(np.clip(u + (2 * box - 1) * half, 1e-4, 1 - 1e-4))
-        u_new, th_new, l_new = evaluate(np.concatenate(local))
+        # the boxes surround moved points already at the target's wavelength: not moved again
+        u_new, th_new, l_new = evaluate(np.concatenate(local), move=False)
         all_unit = np.concatenate([all_unit, u_new])
         thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
         half *= 0.5
@@ -407,7 +423,8 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     timings["total"] = time.perf_counter() - t_start
     history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]
     config = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
-              "method": used, "requested_method": method, "seeds": seeds, "seed": seed, "design": design,
+              "method": used, "requested_method": method, "seeds": seeds, "design_seeds": len(design_keys), "seed": seed,
+              "design": design,
               "n_design": n_design, "rounds": rounds, "keep": keep, "max_steps": max_steps,
               "simulator": sim.describe(), "stats": dataclasses.asdict(stats), "starts": [
                   {"start_loss": f[3], "final_loss": f[0], "method": f[2],

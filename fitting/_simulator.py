@@ -71,6 +71,10 @@ class Simulator(eqx.Module):
         species: the species compared with the target (default: the experiment's `show`, or
             the model's last species, B for Turing).
         boundary, stencil: for a model template.
+        anisotropic: for a model template, the species whose diffusion follows a polarity
+            (`mj.Lattice(anisotropic=...)`, thesis eq. 4.8); the polarity is the parameter
+            `angle` (radians from the +x axis toward increasing row; orientations are
+            modulo pi), uniform over the lattice, fittable like the model's parameters.
         safety, dt_cap, dt: adaptive time step for a model template (dt fixes it instead).
         fixed: parameters set before the fitted ones.
     """
@@ -82,6 +86,7 @@ class Simulator(eqx.Module):
     species: str | None = eqx.field(static=True, default=None)
     boundary: str = eqx.field(static=True, default="wrap")
     stencil: str = eqx.field(static=True, default="nine-point")
+    anisotropic: tuple = eqx.field(static=True, default=())
     safety: float = eqx.field(static=True, default=0.8)
     dt_cap: float = eqx.field(static=True, default=0.01)
     dt: float | None = eqx.field(static=True, default=None)
@@ -105,7 +110,8 @@ class Simulator(eqx.Module):
         """Names that can be fitted or fixed (for experiments: the union over phases, and growth_rate)."""
         if isinstance(self.template, mj.AbstractModel):
             return list(self.template.parameters()) + (
-                ["diffusion_scale"] if _has(self.template, "diffusion_scale") else [])
+                ["diffusion_scale"] if _has(self.template, "diffusion_scale") else []) + (
+                ["angle"] if self.anisotropic else [])
         names = []
         for ph in self.template.phases:
             for n in ph.model.parameters():
@@ -166,7 +172,7 @@ class Simulator(eqx.Module):
             model = self.build(params)
             state = _start(self.template, model, jax.random.fold_in(key, 0), self.shape)
             dt = self.time_step(model)
-            opts = dict(boundary=self.boundary, stencil=self.stencil, check_dt=False, throw=False)
+            opts = dict(domain=self.domain(params), check_dt=False, throw=False)
             head = self.steps - self.window
             if head > 0:
                 state = jax.lax.stop_gradient(mj.simulate(model, state, steps=head, dt=dt, **opts))
@@ -179,6 +185,14 @@ class Simulator(eqx.Module):
             rows, cols = self.final_shape()
             field = state.fields[self._species(state.names), :rows, :cols]
         return jnp.where(jnp.isfinite(field), field, 0.0)
+
+    def domain(self, params: dict) -> mj.Lattice:
+        """The lattice of a model template's run: anisotropic along `angle` when the
+        simulator has anisotropic species (a traced leaf, so the angle is differentiable)."""
+        if not self.anisotropic:
+            return mj.Lattice(self.stencil, self.boundary)
+        angle = {**dict(self.fixed), **params}.get("angle", 0.0)
+        return mj.Lattice(self.stencil, self.boundary, anisotropic=self.anisotropic, polarity=angle)
 
     def final_shape(self, params: dict | None = None) -> tuple:
         """The lattice the compared field lives on (concrete, from the growth schedules).
@@ -223,7 +237,7 @@ class Simulator(eqx.Module):
                 else self.template.to_dict())
         return mj.to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
                                "window": self.window, "species": self.species, "boundary": self.boundary,
-                               "stencil": self.stencil, "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
+                               "stencil": self.stencil, "anisotropic": list(self.anisotropic), "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
                                "fixed": dict(self.fixed)})
 
 

@@ -11,8 +11,8 @@ independent of the lattice size: spatial frequencies are in cycles per cell, lag
 - `quantiles`: sorted values at fixed levels (the intensity histogram);
 - `dark`: fraction of the dark phase, with a soft (sigmoid) threshold at 0.5;
 - `autocorr`: the radially averaged autocorrelation at a few lags;
-- `orientation` (optional): structure-tensor coherence times (cos 2 theta, sin 2 theta),
-  for stripes.
+- `orientation` (on by default; `StatsConfig(orientation=False)` drops it): structure-
+  tensor coherence times (cos 2 theta, sin 2 theta) of the mean gradient, for stripes.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ class StatsConfig:
     # (sigmoid of width `softness`) before the statistics, so a photo's shading and fur
     # texture and a model's concentration profile do not decide the fit
     binarise: bool = True
-    orientation: bool = False
+    orientation: bool = True
     # Typical seed-to-seed standard deviation of each group (measured on 64x64 Turing
     # patterns): residuals are divided by these, so the distance is in units of noise.
     noise: tuple = (("spectrum", 0.15), ("wavelength", 0.02), ("quantiles", 0.01), ("dark", 0.005),

@@ -269,6 +269,10 @@ def test_cli_and_python_defaults_are_the_same():
     assert compared >= 12 and api["model"] == cli["model"] == "auto" and api["progress"] is None
     assert cli["binarise"] is True and fitting.StatsConfig().binarise is True  # pigment maps everywhere
     assert api["stats"] is None and fitting.DEFAULTS["binarise"] == fitting.StatsConfig().binarise
+    # orientation on everywhere (oriented families exist), and --no-orientation turns it off
+    assert cli["orientation"] is True and fitting.StatsConfig().orientation is True
+    assert parser.parse_args(["p.png", "--json", "f.json", "--no-orientation"]).orientation is False
+    assert cli["design_seeds"] == api["design_seeds"] == 2
 
 
 # ---- model families -----------------------------------------------------------------------
@@ -277,6 +281,7 @@ TRUTHS = {  # a pattern-forming point of each family's default fitted parameters
     "turing": {"ratio": 20.0, "scale": 1.2, "lower_b": 2.0},
     "bard": {"alpha": 16.0, "beta": 12.0, "diffusion_scale": 0.25},
     "gray-scott": {"feed": 0.0367, "kill": 0.0649, "diffusion_scale": 0.4},
+    "anisotropic-turing": {"ratio": 20.0, "scale": 1.2, "angle": 0.5},
     "reinforcement": {"threshold": 5.0, "width": 5.0, "diffusion": 0.1},
     "leopard": {"definition:ratio": 30.0, "definition:scale": 0.5, "threshold": 5.0},
 }
@@ -305,7 +310,8 @@ def test_family_loss_and_length_scale(name):
 
     fam = fitting.FAMILIES[name]
     shape = (24, 24)
-    sim = fitting.Simulator(fam.make(shape), shape=shape, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap)
+    sim = fitting.Simulator(fam.make(shape), shape=shape, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap,
+                            anisotropic=fam.anisotropic)
     names = list(fam.fit)
     space = ParamSpace.build(names, {n: fam.default_bounds(n) for n in names})
     truth = TRUTHS[name]
@@ -340,6 +346,60 @@ def test_auto_ranks_every_screened_family():
     data = json.loads(json.dumps(res.to_json(), allow_nan=False))
     assert data["family"] == res.family and {"family", "loss", "params"} <= set(data["ranking"][0])
     assert set(data["intervals"]) == set(res.params) and isinstance(data["undetermined"], list)
+
+
+# ---- oriented coats -----------------------------------------------------------------------
+
+
+def test_stripe_angle_of_known_stripes():
+    rows, cols = np.mgrid[0:48, 0:48].astype(float)
+    for direction in (0.0, 0.4, -1.1, np.pi / 2 - 0.05):
+        # stripes running along `direction` (x = column, y = row): the phase varies across it
+        across = -np.sin(direction) * cols + np.cos(direction) * rows
+        found, coherence = fitting.stripe_angle(np.sin(2 * np.pi * across / 8.0))
+        assert np.cos(2 * (found - direction)) > np.cos(2 * 0.05) and coherence > 0.9, (direction, found)
+    noise = np.random.default_rng(0).uniform(size=(48, 48))
+    assert fitting.stripe_angle(noise)[1] < 0.1
+    lo, hi, geometric = fitting.FAMILIES["anisotropic-turing"].default_bounds("angle")
+    assert (lo, hi, geometric) == pytest.approx((-np.pi / 2, np.pi / 2, False))
+
+
+def test_anisotropic_family_lays_stripes_along_its_angle_and_auto_gates_on_coherence():
+    """Fig. 5.13's rule on Turing's model: B diffusing along the polarity lays stripes
+    along it; an isotropic target leaves the oriented families out of `auto`'s screen."""
+    from fitting._auto import families_for
+
+    fam = fitting.FAMILIES["anisotropic-turing"]
+    sim = fitting.Simulator(fam.make((32, 32)), shape=(32, 32), steps=3000, window=300, anisotropic=fam.anisotropic)
+    assert "angle" in sim.parameter_names() and sim.describe()["anisotropic"] == ["b"]
+    run = jax.jit(lambda p, k: sim.run(p, k))
+    for angle in (0.3, -0.8):  # directions a 32x32 torus allows (see the next test)
+        field = np.asarray(run({"ratio": 20.0, "scale": 1.2, "angle": jnp.float32(angle)}, jax.random.key(3)))
+        found, coherence = fitting.stripe_angle(field)
+        assert coherence > fitting.ORIENTED_COHERENCE and np.cos(2 * (found - angle)) > np.cos(2 * 0.2), (angle, found)
+    assert "anisotropic-turing" in families_for(field)
+    iso = np.asarray(fitting.Simulator(mj.Turing(), shape=(32, 32), steps=3000, window=300).run(
+        {"ratio": 20.0, "scale": 1.2}, jax.random.key(3)))
+    assert "anisotropic-turing" not in families_for(iso) and "turing" in families_for(iso)
+    assert families_for(iso, ["anisotropic-turing"]) == ["anisotropic-turing"]
+    with pytest.raises(ValueError, match="unknown model family 'tiger'"):
+        families_for(iso, ["tiger"])
+
+
+def test_oriented_fit_recovers_the_angle():
+    fam = fitting.FAMILIES["anisotropic-turing"]
+    sim = fitting.Simulator(fam.make((32, 32)), shape=(32, 32), steps=3000, window=300, anisotropic=fam.anisotropic)
+    # a diagonal: on a 32x32 torus stripes can only take directions the wrap allows, so the
+    # loss over the angle is rugged between them (photos, which do not wrap, are smoother)
+    truth = {"ratio": 20.0, "scale": 1.2, "angle": -0.8}
+    field = np.asarray(sim.run(truth, jax.random.key(21)))
+    res = fitting.fit(field, model="anisotropic-turing", fit=["scale", "angle"], fixed={"ratio": 20.0},
+                      shape=(32, 32), steps=3000, window=300, seeds=2, n_design=12, rounds=1, keep=1, max_steps=4,
+                      noise_seeds=3, intervals=False, progress=False)
+    assert res.family == "anisotropic-turing"
+    assert np.cos(2 * (res.params["angle"] - truth["angle"])) > np.cos(2 * 0.15), res.params
+    lo, hi = res.config["bounds"]["angle"]  # the half-turn centred on the target's stripes
+    assert hi - lo == pytest.approx(np.pi, rel=1e-5) and lo < truth["angle"] < hi
 
 
 # ---- uncertainty --------------------------------------------------------------------------
