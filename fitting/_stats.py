@@ -11,6 +11,10 @@ independent of the lattice size: spatial frequencies are in cycles per cell, lag
 - `quantiles`: sorted values at fixed levels (the intensity histogram);
 - `dark`: fraction of the dark phase, with a soft (sigmoid) threshold at 0.5;
 - `autocorr`: the radially averaged autocorrelation at a few lags;
+- `pyramid` (multi-scale, in the style of Portilla and Simoncelli): a Laplacian pyramid of
+  `levels` octaves; per octave the log of its band's share of the variance, and between
+  neighbouring octaves the correlation of the bands' magnitudes (spots and rosettes couple
+  fine and coarse scales where labyrinths at one scale do not);
 - `orientation` (on by default; `StatsConfig(orientation=False)` drops it): structure-
   tensor coherence times (cos 2 theta, sin 2 theta) of the mean gradient, for stripes.
 """
@@ -45,10 +49,12 @@ class StatsConfig:
     # texture and a model's concentration profile do not decide the fit
     binarise: bool = True
     orientation: bool = True
+    # octaves of the Laplacian pyramid (0 leaves the group out)
+    levels_pyramid: int = 3
     # Typical seed-to-seed standard deviation of each group (measured on 64x64 Turing
     # patterns): residuals are divided by these, so the distance is in units of noise.
     noise: tuple = (("spectrum", 0.15), ("wavelength", 0.02), ("quantiles", 0.01), ("dark", 0.005),
-                    ("autocorr", 0.01), ("edges", 0.04), ("moments", 0.02), ("orientation", 0.05))
+                    ("autocorr", 0.01), ("edges", 0.04), ("moments", 0.02), ("orientation", 0.1), ("pyramid", 0.03))
     # extra emphasis per group (1 = as the noise says)
     weights: tuple = ()
 
@@ -59,6 +65,8 @@ class StatsConfig:
     def groups(self) -> tuple:
         """Names of the statistics groups in use, in the order of the statistics vector."""
         names = ["spectrum", "wavelength", "quantiles", "dark", "autocorr", "edges", "moments"]
+        if self.levels_pyramid:
+            names.append("pyramid")
         if self.orientation:
             names.append("orientation")
         return tuple(names)
@@ -121,6 +129,37 @@ def _lag_matrix(shape, lags):
     return mats
 
 
+def _blur(z):
+    """The binomial [1, 4, 6, 4, 1] / 16 filter along both axes (periodic)."""
+    for axis in (0, 1):
+        z = (6.0 * z + 4.0 * (jnp.roll(z, 1, axis) + jnp.roll(z, -1, axis))
+             + jnp.roll(z, 2, axis) + jnp.roll(z, -2, axis)) / 16.0
+    return z
+
+
+def pyramid_stats(z, levels: int):
+    """Laplacian-pyramid statistics of a field (see the module docstring): `levels` log band
+    shares of the variance, then `levels - 1` magnitude correlations of neighbouring octaves.
+    Each octave halves the lattice (odd sizes drop their last row or column)."""
+    z = z - jnp.mean(z)
+    var = jnp.mean(z * z) + 1e-12
+    bands = []
+    for _ in range(int(levels)):
+        smooth = _blur(z)
+        bands.append(z - smooth)
+        rows, cols = smooth.shape[0] // 2 * 2, smooth.shape[1] // 2 * 2
+        s = smooth[:rows, :cols]
+        z = 0.25 * (s[0::2, 0::2] + s[1::2, 0::2] + s[0::2, 1::2] + s[1::2, 1::2])
+    shares = [jnp.log(jnp.mean(b * b) / var + 1e-6) for b in bands]
+    corr = []
+    for fine, coarse in zip(bands[:-1], bands[1:]):
+        up = jnp.repeat(jnp.repeat(jnp.abs(coarse), 2, 0), 2, 1)  # the coarse octave on the fine grid
+        a = jnp.abs(fine[: up.shape[0], : up.shape[1]])
+        a, up = a - jnp.mean(a), up - jnp.mean(up)
+        corr.append(jnp.mean(a * up) / jnp.sqrt(jnp.mean(a * a) * jnp.mean(up * up) + 1e-12))
+    return jnp.stack(shares + corr)
+
+
 def texture_stats(x, cfg: StatsConfig = StatsConfig()) -> dict:
     """The statistics of one 2D field (see the module docstring), as a dict of arrays."""
     x = jnp.asarray(x)
@@ -157,6 +196,8 @@ def texture_stats(x, cfg: StatsConfig = StatsConfig()) -> dict:
     out["moments"] = jnp.stack([jnp.mean(centred**3) / sd**3, jnp.mean(centred**4) / var**2])
     ac = jnp.real(jnp.fft.ifft2(jnp.abs(f) ** 2)).ravel() / (z.size * var)
     out["autocorr"] = jnp.asarray(_lag_matrix(shape, tuple(cfg.lags))) @ ac
+    if cfg.levels_pyramid:
+        out["pyramid"] = pyramid_stats(z, cfg.levels_pyramid)
     if cfg.orientation:
         jxx, jyy, jxy = jnp.mean(gx * gx), jnp.mean(gy * gy), jnp.mean(gx * gy)
         norm = jxx + jyy + 1e-12

@@ -108,3 +108,24 @@ def brusselator_rates(u, v, a, b, Du, Dv, boundary="wrap", stencil="nine-point")
     du = a - (b + 1.0) * u + u * u * v + Du * laplacian(u, boundary, stencil)
     dv = b * u - u * u * v + Dv * laplacian(v, boundary, stencil)
     return du, dv
+
+
+def pyramid_stats(z, levels):
+    """Laplacian-pyramid statistics (fitting's `pyramid` group) by scipy convolutions: per
+    octave log(band energy / variance + 1e-6), then neighbouring octaves' magnitude
+    correlations (the coarse band repeated 2x2 onto the fine grid)."""
+    z = np.asarray(z, np.float64) - np.mean(z)
+    var = np.mean(z * z) + 1e-12
+    kernel = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
+    bands = []
+    for _ in range(levels):
+        smooth = ndi.convolve1d(ndi.convolve1d(z, kernel, axis=0, mode="wrap"), kernel, axis=1, mode="wrap")
+        bands.append(z - smooth)
+        s = smooth[: smooth.shape[0] // 2 * 2, : smooth.shape[1] // 2 * 2]
+        z = s.reshape(s.shape[0] // 2, 2, s.shape[1] // 2, 2).mean(axis=(1, 3))
+    out = [math.log(np.mean(b * b) / var + 1e-6) for b in bands]
+    for fine, coarse in zip(bands[:-1], bands[1:]):
+        up = np.kron(np.abs(coarse), np.ones((2, 2)))
+        a = np.abs(fine[: up.shape[0], : up.shape[1]])
+        out.append(np.corrcoef(a.ravel(), up.ravel())[0, 1])
+    return np.array(out)

@@ -106,6 +106,29 @@ def test_statistics_are_differentiable():
     assert t["quantiles"].shape == (10,)
 
 
+def test_pyramid_statistics_against_the_oracle():
+    """The Laplacian-pyramid group against scipy convolutions, on odd and even lattices; a
+    wave puts its energy in the octave of its period."""
+    from oracle import pyramid_stats as oracle_pyramid
+
+    rng = np.random.default_rng(4)
+    for shape in ((32, 32), (27, 41)):
+        z = rng.uniform(size=shape)
+        got = np.asarray(fitting._stats.pyramid_stats(jnp.asarray(z, jnp.float32), 3))
+        np.testing.assert_allclose(got, oracle_pyramid(z, 3), rtol=1e-4, atol=1e-5)  # float32
+    _, cols = np.mgrid[0:64, 0:64]
+    fine = np.sin(2 * np.pi * cols / 4.0)  # all its energy in the first octave
+    coarse = np.sin(2 * np.pi * cols / 16.0)
+    shares = np.asarray(fitting._stats.pyramid_stats(jnp.asarray(fine), 3))[:3]
+    # the binomial filter passes (6 + 8 cos(pi/2) + 2 cos(pi)) / 16 = 1/4 of a period-4 wave
+    assert shares[0] == pytest.approx(np.log(0.75**2), abs=1e-3)
+    assert shares[0] > shares[1] + 2 and shares[0] > shares[2] + 2
+    # period 16 is period 4 two octaves down: its energy peaks in the third band
+    assert np.argmax(np.asarray(fitting._stats.pyramid_stats(jnp.asarray(coarse), 3))[:3]) == 2
+    assert fitting.StatsConfig().groups()[-2:] == ("pyramid", "orientation")
+    assert "pyramid" not in fitting.StatsConfig(levels_pyramid=0).groups()
+
+
 # ---- parameter spaces ------------------------------------------------------------------
 
 
