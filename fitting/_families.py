@@ -12,7 +12,10 @@ with x -> x sqrt(factor)). Turing's `scale` multiplies its diffusion rates (leop
 eqs. 3-4), so wavelength ~ scale ** 0.5; Bard and Gray-Scott have no such parameter, so
 their families fit `diffusion_scale`, a common factor on their template's diffusion rates
 (`fitting.Simulator`). The three-phase leopard experiment moves its wavelength through the
-definition phase's `scale`, which sets the spot spacing that later phases inherit.
+definition phase's `scale`, which sets the spot spacing that later phases inherit. Young's
+automaton has no such parameter (its radii are the length scale, and moving one alone
+changes the pattern's kind), so its design searches the radii directly; its runs cost about
+a millisecond, so that is cheap.
 
 Oriented coats (zebra, tiger): `anisotropic-turing` is Turing's model with the inhibitor B
 diffusing along a polarity (thesis eq. 4.8, `mj.Lattice(anisotropic=("b",), polarity=angle)`),
@@ -40,7 +43,7 @@ import morphojax as mj
 class Family:
     """One model family: its template, parameters and bounds, default fit, run and length scale.
 
-    make(shape) -> a model or Experiment whose compared field is `shape` (rows, cols);
+    make(shape) -> a model, Experiment or one-species YoungCA whose compared field is `shape`;
     bounds: {name: (low, high, geometric)}; fit: parameters fitted by default; length:
     the parameter with wavelength ~ length ** length_power (None: none); steps, window,
     dt_cap: the run (steps per simulation, differentiated steps, largest time step).
@@ -135,6 +138,13 @@ FAMILIES = {
         {"threshold": (2.0, 8.0, False), "width": (1.0, 8.0, True), "diffusion": (0.01, 0.5, True)},
         ("threshold", "width", "diffusion"), length="diffusion", steps=4000, window=500, dt_cap=0.05,
         description="single-reagent reinforcement (leopard paper eq. 6)"),
+    "young": Family(
+        "young", lambda shape: mj.YoungCA([(2.3, 6.01, 1.0, -0.3)], denominator=100),
+        {"r_act": (1.0, 5.0, False), "r_inh": (2.0, 12.0, False), "w_inh": (-1.0, -0.05, False),
+         "w_act": (0.2, 2.0, False)},
+        ("r_act", "r_inh", "w_inh"), length=None, steps=30, window=10,
+        description="Young's activator-inhibitor automaton (paper 002) through its soft relaxation "
+                    "(fitting.Simulator): 30 steps from Young's sparse start; spots to stripes as w_inh rises"),
     "leopard": Family(
         "leopard", _leopard,
         {**_TURING, "definition:ratio": (10.0, 40.0, True), "definition:scale": (0.15, 1.2, True),

@@ -42,9 +42,9 @@ METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 def _as_template(model, shape):
     if isinstance(model, str):
         return mj.model_from_name(model)
-    if isinstance(model, (mj.AbstractModel, mj.Experiment)):
+    if isinstance(model, (mj.AbstractModel, mj.Experiment, mj.YoungCA)):
         return model
-    raise ValueError(f"model must be a model name, a model or an Experiment (got {type(model).__name__})")
+    raise ValueError(f"model must be a model name, a model, an Experiment or a YoungCA (got {type(model).__name__})")
 
 
 _RECORDERS: list = []  # the recorder of the fit in progress (callbacks from compiled code)
@@ -184,8 +184,9 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
             resolution (normalised by its quantiles like a photo).
         model: "auto" (screen every family, fit the best `top` in full, rank them; see
             `fitting._auto`), a family name ("turing", "anisotropic-turing", "bard",
-            "gray-scott", "reinforcement", "leopard"; `fitting.FAMILIES`), another model name, a model,
-            or an `Experiment` (growing and multi-phase runs; see `Simulator` for names).
+            "gray-scott", "reinforcement", "young", "leopard"; `fitting.FAMILIES`), another
+            model name, a model, a one-species `YoungCA`, or an `Experiment` (growing and
+            multi-phase runs; see `Simulator` for names).
         fit: names of the parameters to fit; None fits the family's defaults (with "auto",
             names given apply to each family that has them).
         fixed: parameters held at given values; bounds: {name: (low, high)} overriding the

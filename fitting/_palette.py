@@ -91,7 +91,7 @@ def render_coat(result, size=512, palette="photo", seed: int = 0) -> Image.Image
     cell_pixels = max(float(result.target.get("cell_pixels", 1.0)), 1.0)
     sim = result.simulator
     field = np.asarray(result.fields["fit"])
-    if sim is not None and isinstance(sim.template, mj.AbstractModel) and sim.boundary == "wrap":
+    if sim is not None and isinstance(sim.template, (mj.AbstractModel, mj.YoungCA)) and sim.boundary == "wrap":
         rows = min(max(int(np.ceil(height / cell_pixels)), field.shape[0]), 256)
         cols = min(max(int(np.ceil(width / cell_pixels)), field.shape[1]), 256)
         big = dataclasses.replace(sim, shape=(rows, cols))

@@ -87,7 +87,12 @@ class FitResult:
 
     def to_json(self) -> dict:
         """Everything in the result as a JSON-ready dict (top-level 'params')."""
-        model = mj.model_to_dict(self.model) if isinstance(self.model, mj.AbstractModel) else self.model.to_dict()
+        if isinstance(self.model, mj.AbstractModel):
+            model = mj.model_to_dict(self.model)
+        elif isinstance(self.model, mj.YoungCA):  # as models: {"type", "params"} (`YoungCA(**params)`)
+            model = {"type": "YoungCA", "params": self.model.to_dict()}
+        else:
+            model = self.model.to_dict()
         return mj.to_jsonable({
             "params": self.params, "family": self.family, "loss": self.loss, "noise_floor": self.noise_floor,
             "loss_over_noise_floor": self.loss / self.noise_floor if self.noise_floor > 0 else None,

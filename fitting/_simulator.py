@@ -58,6 +58,29 @@ def _has(model: mj.AbstractModel, name: str) -> bool:
     return name in model.parameters()
 
 
+# Young's automaton through its soft relaxation (`YoungCA.soft_run`): weights are compared
+# over this denominator, the temperature is in units of the weights, the disc edges are
+# smoothed over this many cells (so the radii get gradients)
+YOUNG_DENOMINATOR, YOUNG_TEMPERATURE, YOUNG_EDGE = 100, 0.05, 0.5
+YOUNG_PARAMETERS = ("r_act", "r_inh", "w_act", "w_inh")
+
+
+def _young(template: mj.YoungCA, params: dict) -> mj.YoungCA:
+    """One-species YoungCA with `params` (r_act, r_inh, w_act, w_inh) set. The weights snap
+    to multiples of 1 / YOUNG_DENOMINATOR in value (their gradients pass straight through)
+    and r_inh is at least r_act (an empty ring otherwise), so every point is a valid model."""
+    values = {n: params.get(n, getattr(template, n)[0]) for n in YOUNG_PARAMETERS}
+    r_act = jnp.asarray(values["r_act"], jnp.float32)
+    r_inh = jnp.maximum(jnp.asarray(values["r_inh"], jnp.float32), r_act)
+
+    def snap(w):
+        w = jnp.asarray(w, jnp.float32)
+        return w + jax.lax.stop_gradient(jnp.round(w * YOUNG_DENOMINATOR) / YOUNG_DENOMINATOR - w)
+
+    row = jnp.stack([r_act, r_inh, snap(values["w_act"]), snap(values["w_inh"])])
+    return mj.YoungCA(row[None], template.neighbourhood, template.include_self, denominator=YOUNG_DENOMINATOR)
+
+
 class Simulator(eqx.Module):
     """How a dict of parameters becomes one simulated 2D field.
 
@@ -100,14 +123,19 @@ class Simulator(eqx.Module):
             self.compare = self.final_shape()
 
     def __check_init__(self):
-        if not isinstance(self.template, (mj.AbstractModel, mj.Experiment)):
-            raise ValueError(f"Simulator.template must be a model or an Experiment (got {type(self.template).__name__})")
-        if isinstance(self.template, mj.AbstractModel) and (self.steps < 1 or not 0 <= self.window <= self.steps):
+        if not isinstance(self.template, (mj.AbstractModel, mj.Experiment, mj.YoungCA)):
+            raise ValueError("Simulator.template must be a model, an Experiment or a one-species YoungCA "
+                             f"(got {type(self.template).__name__})")
+        if isinstance(self.template, mj.YoungCA) and self.template.n_species != 1:
+            raise ValueError(f"Simulator.template: a YoungCA must have one species (got {self.template.n_species})")
+        if not isinstance(self.template, mj.Experiment) and (self.steps < 1 or not 0 <= self.window <= self.steps):
             raise ValueError(f"need steps >= 1 and 0 <= window <= steps (got steps={self.steps}, window={self.window})")
 
     # ---- parameters -------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
         """Names that can be fitted or fixed (for experiments: the union over phases, and growth_rate)."""
+        if isinstance(self.template, mj.YoungCA):
+            return list(YOUNG_PARAMETERS)
         if isinstance(self.template, mj.AbstractModel):
             return list(self.template.parameters()) + (
                 ["diffusion_scale"] if _has(self.template, "diffusion_scale") else []) + (
@@ -135,6 +163,8 @@ class Simulator(eqx.Module):
     def build(self, params: dict):
         """The model or experiment with `params` (and `fixed`) applied."""
         params = {**dict(self.fixed), **params}
+        if isinstance(self.template, mj.YoungCA):
+            return _young(self.template, params)
         if isinstance(self.template, mj.AbstractModel):
             return _apply(self.template, params)
         phases = []
@@ -168,6 +198,18 @@ class Simulator(eqx.Module):
 
     def run(self, params: dict, key):
         """One simulated field (rows, cols) for `params` and `key`; NaN never comes out."""
+        if isinstance(self.template, mj.YoungCA):
+            # Young's start (a cell differentiated with probability YOUNG_P), relaxed softly;
+            # the field is the differentiated probability. The first steps - window steps
+            # are not differentiated.
+            ca = self.build(params)
+            cells = mj.random_cells(jax.random.fold_in(key, 0), self.shape, k=1, p=mj.YOUNG_P)
+            probs = jax.nn.one_hot(cells, 2, axis=0, dtype=jnp.float32)
+            head = self.steps - self.window
+            if head > 0:
+                probs = jax.lax.stop_gradient(ca.soft_run(probs, head, YOUNG_TEMPERATURE, edge=YOUNG_EDGE))
+            field = ca.soft_run(probs, self.window, YOUNG_TEMPERATURE, edge=YOUNG_EDGE)[0]
+            return jnp.where(jnp.isfinite(field), field, 0.0)
         if isinstance(self.template, mj.AbstractModel):
             model = self.build(params)
             state = _start(self.template, model, jax.random.fold_in(key, 0), self.shape)
@@ -202,7 +244,7 @@ class Simulator(eqx.Module):
         rates are fitted, `fit` sets `compare` to the lattice of the lowest rates, so every
         point compares the same top-left window of its grown lattice.
         """
-        if isinstance(self.template, mj.AbstractModel):
+        if not isinstance(self.template, mj.Experiment):
             return tuple(self.shape)
         if params is None and self.compare is not None:
             return tuple(self.compare)
@@ -223,7 +265,7 @@ class Simulator(eqx.Module):
 
     def check_capacity(self, params: dict) -> None:
         """Raise if the growth `params` give (concrete values) needs more than the capacity."""
-        if isinstance(self.template, mj.AbstractModel):
+        if not isinstance(self.template, mj.Experiment):
             return
         for ph, ((rows, cols), cap) in zip(self.template.phases, self._sizes(params)):
             if rows > cap[0] or cols > cap[1]:
@@ -234,7 +276,7 @@ class Simulator(eqx.Module):
     def describe(self) -> dict:
         """JSON-ready description of the simulator (template, lattice, steps, window, time step)."""
         tmpl = (mj.model_to_dict(self.template) if isinstance(self.template, mj.AbstractModel)
-                else self.template.to_dict())
+                else self.template.to_dict())  # an Experiment's or a YoungCA's own
         return mj.to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
                                "window": self.window, "species": self.species, "boundary": self.boundary,
                                "stencil": self.stencil, "anisotropic": list(self.anisotropic), "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,

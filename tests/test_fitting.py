@@ -306,6 +306,7 @@ TRUTHS = {  # a pattern-forming point of each family's default fitted parameters
     "gray-scott": {"feed": 0.0367, "kill": 0.0649, "diffusion_scale": 0.4},
     "anisotropic-turing": {"ratio": 20.0, "scale": 1.2, "angle": 0.5},
     "reinforcement": {"threshold": 5.0, "width": 5.0, "diffusion": 0.1},
+    "young": {"r_act": 2.3, "r_inh": 6.01, "w_inh": -0.3},
     "leopard": {"definition:ratio": 30.0, "definition:scale": 0.5, "threshold": 5.0},
 }
 
@@ -313,7 +314,7 @@ TRUTHS = {  # a pattern-forming point of each family's default fitted parameters
 def test_every_family_declares_its_parameters():
     assert set(TRUTHS) <= set(fitting.FAMILIES)
     for name, fam in fitting.FAMILIES.items():
-        assert set(fam.fit) == set(TRUTHS[name]) and fam.length in fam.fit
+        assert set(fam.fit) == set(TRUTHS[name]) and (fam.length is None or fam.length in fam.fit)
         for n in fam.fit:
             lo, hi, _ = fam.default_bounds(n)
             assert lo < TRUTHS[name][n] < hi, (name, n)
@@ -327,7 +328,7 @@ def test_family_loss_and_length_scale(name):
     the length parameter 3x off, and the family's declared length law moves that start
     towards the truth (not checked for Gray-Scott: its spot spacing on a lattice this small
     is not a clean power of the diffusion scale; the design keeps a move only when it lowers
-    the loss)."""
+    the loss; Young's automaton has no length law: its inhibitor radius is put 1.8x off)."""
     from fitting._fit import _design_batch
     from fitting._space import ParamSpace
 
@@ -342,15 +343,16 @@ def test_family_loss_and_length_scale(name):
     assert np.ptp(field) > 0, "the truth forms a pattern"
     cfg = StatsConfig()
     tstats = jax.tree_util.tree_map(np.asarray, fitting.texture_stats(jnp.asarray(field), cfg))
-    j = names.index(fam.length)
+    j = names.index(fam.length or "r_inh")  # Young: its inhibitor radius, 1.8x off
     start = np.array([truth[n] for n in names], np.float32)
     # 3x off (reinforcement: a third, since 3x coarsens past the 24-cell lattice)
-    start[j] = np.clip(start[j] * (1 / 3 if name == "reinforcement" else 3.0), space.low[j], space.high[j])
+    factor = {"reinforcement": 1 / 3, "young": 1.8}.get(name, 3.0)
+    start[j] = np.clip(start[j] * factor, space.low[j], space.high[j])
     thetas = jnp.asarray(np.stack([[truth[n] for n in names], start]), jnp.float32)
     keys = jax.random.split(jax.random.key(1), 2)
     losses, lams = (np.asarray(v) for v in _design_batch(sim, space, cfg, thetas, keys, tstats))
     assert losses[0] < losses[1]
-    if name == "gray-scott":
+    if name == "gray-scott" or fam.length is None:
         return
     moved = start[j] * (float(tstats["wavelength"]) / lams[1]) ** (1.0 / fam.length_power)
     assert abs(np.log(moved / truth[fam.length])) < abs(np.log(start[j] / truth[fam.length]))
@@ -423,6 +425,28 @@ def test_oriented_fit_recovers_the_angle():
     assert np.cos(2 * (res.params["angle"] - truth["angle"])) > np.cos(2 * 0.15), res.params
     lo, hi = res.config["bounds"]["angle"]  # the half-turn centred on the target's stripes
     assert hi - lo == pytest.approx(np.pi, rel=1e-5) and lo < truth["angle"] < hi
+
+
+def test_young_family_fits_its_weight_and_reports(tmp_path):
+    """Young's automaton through the soft relaxation: a spotted target (w_inh -0.36) is told
+    from a striped one (w_inh -0.2) by the fitted weight; the result serialises the
+    automaton and renders a coat (re-simulated on a larger periodic lattice)."""
+    fam = fitting.FAMILIES["young"]
+    sim = fitting.Simulator(fam.make((32, 32)), shape=(32, 32), steps=fam.steps, window=fam.window)
+    assert sim.parameter_names() == ["r_act", "r_inh", "w_act", "w_inh"]
+    built = sim.build({"r_act": 3.0, "r_inh": 2.0, "w_inh": -0.314159})
+    assert float(built.r_inh[0]) == 3.0 and float(built.w_inh[0]) == pytest.approx(-0.31)  # valid, on the grid
+    found = {}
+    for truth in (-0.2, -0.36):
+        field = np.asarray(sim.run({"w_inh": truth}, jax.random.key(50)))
+        res = fitting.fit(field, model="young", fit=["w_inh"], shape=(32, 32), seeds=2, n_design=10, rounds=1,
+                          keep=1, max_steps=4, noise_seeds=3, intervals=False, progress=False)
+        found[truth] = res.params["w_inh"]
+    assert abs(found[-0.2] - (-0.2)) < 0.06 and abs(found[-0.36] - (-0.36)) < 0.06, found
+    data = json.loads(json.dumps(res.to_json(), allow_nan=False))
+    assert res.family == "young" and data["model"]["type"] == "YoungCA"
+    assert mj.YoungCA(**data["model"]["params"]).w_inh[0] == pytest.approx(res.params["w_inh"], abs=0.006)
+    assert res.render(tmp_path / "coat.png", size=96).size == (96, 96)
 
 
 # ---- uncertainty --------------------------------------------------------------------------
