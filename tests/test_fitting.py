@@ -125,8 +125,32 @@ def test_pyramid_statistics_against_the_oracle():
     assert shares[0] > shares[1] + 2 and shares[0] > shares[2] + 2
     # period 16 is period 4 two octaves down: its energy peaks in the third band
     assert np.argmax(np.asarray(fitting._stats.pyramid_stats(jnp.asarray(coarse), 3))[:3]) == 2
-    assert fitting.StatsConfig().groups()[-2:] == ("pyramid", "orientation")
+    assert fitting.StatsConfig().groups()[-3:] == ("pyramid", "morphology", "orientation")
     assert "pyramid" not in fitting.StatsConfig(levels_pyramid=0).groups()
+
+
+def test_morphology_statistics_against_the_oracle_and_rosettes():
+    """Local coherence and the closing's filled light area against scipy's grey closing;
+    rings around a light centre (rosettes) fill light area where sparse solid spots fill
+    none, and stripes are locally coherent where spots are less so."""
+    from oracle import morphology_stats as oracle_morphology
+
+    morph = fitting._stats.morphology_stats
+    z = np.random.default_rng(5).uniform(size=(30, 36))
+    for wavelength in (6.0, 12.5, 40.0):
+        np.testing.assert_allclose(np.asarray(morph(jnp.asarray(z, jnp.float32), wavelength)),
+                                   oracle_morphology(z, wavelength), rtol=1e-4, atol=1e-5)
+    rows, cols = np.mgrid[0:60, 0:60]
+    d = np.hypot((rows % 15) - 7, (cols % 15) - 7)  # a lattice of centres 15 cells apart
+    spots = (d < 4).astype(float)
+    rosettes = ((d > 2.5) & (d < 5)).astype(float)  # a ring of pigment around a light centre
+    stripes = (np.sin(2 * np.pi * cols / 15.0) > 0).astype(float)
+    m = {name: np.asarray(morph(jnp.asarray(f, jnp.float32), 15.0))
+         for name, f in (("spots", spots), ("rosettes", rosettes), ("stripes", stripes))}
+    assert m["spots"][1] == pytest.approx(0.0, abs=1e-6) and m["rosettes"][1] > 0.02
+    assert m["stripes"][0] > 0.95 and m["spots"][0] < 0.7 and m["rosettes"][0] < 0.7
+    g = jax.grad(lambda f: jnp.sum(morph(f, 15.0)))(jnp.asarray(rosettes * 0.8 + 0.1, jnp.float32))
+    assert np.isfinite(np.asarray(g)).all() and float(jnp.abs(g).sum()) > 0
 
 
 # ---- parameter spaces ------------------------------------------------------------------
