@@ -17,6 +17,15 @@ automaton has no such parameter (its radii are the length scale, and moving one 
 changes the pattern's kind), so its design searches the radii directly; its runs cost about
 a millisecond, so that is cheap.
 
+Lower bounds keep every family's pattern above the lattice scale. Photos are resampled to
+10 cells per wavelength, so a pattern whose features are a cell or two wide is never the
+answer, but its fine texture can match a photo's fur: with lower bounds of 0.1 the cheetah's
+auto fit picked Gray-Scott rings locked to the lattice's squares. Measured on 64x64 lattices
+(dominant wavelength, cells): Gray-Scott 5.3 at diffusion_scale 0.1 (square rings), 8.6 at
+0.25; Bard 2.2 at 0.05 and 4.5 at 0.3 (lattice noise), 6.8 at 0.5; reinforcement lattice
+noise at diffusion 0.2 (4.5), blotches of 27 at 0.5 after its 4,000 steps, so its wavelength
+moves about as diffusion ** 2 there (`length_power`), not as the square root.
+
 Oriented coats (zebra, tiger): `anisotropic-turing` is Turing's model with the inhibitor B
 diffusing along a polarity (thesis eq. 4.8, `mj.Lattice(anisotropic=("b",), polarity=angle)`),
 which lays stripes along the polarity (anisotropy on the activator A lays them across it;
@@ -122,25 +131,26 @@ FAMILIES = {
     "bard": Family(
         "bard", lambda shape: mj.preset("nudibranch").phases[0].model,
         {"alpha": (12.0, 20.0, False), "beta": (10.0, 14.0, False), "sp": (1e-3, 1.0, True),
-         "diffusion_scale": (0.05, 3.0, True), "da": (1e-3, 10.0, True), "db": (1e-3, 10.0, True),
+         "diffusion_scale": (0.4, 3.0, True), "da": (1e-3, 10.0, True), "db": (1e-3, 10.0, True),
          "upper_a": (2.0, 12.0, False), "lower_a": (0.0, 5.0, False), "lower_b": (0.0, 6.0, False)},
         ("alpha", "beta", "diffusion_scale"), length="diffusion_scale", length_power=0.75, steps=3000, window=500,
         dt_cap=1.0,
         description="Bard's model (thesis listing), length through a common diffusion scale"),
     "gray-scott": Family(
         "gray-scott", lambda shape: mj.model_from_name("gray-scott"),
-        {"feed": (0.01, 0.08, False), "kill": (0.045, 0.07, False), "diffusion_scale": (0.1, 1.5, True),
+        {"feed": (0.01, 0.08, False), "kill": (0.045, 0.07, False), "diffusion_scale": (0.2, 1.5, True),
          "du": (0.02, 1.0, True), "dv": (0.01, 0.5, True)},
         ("feed", "kill", "diffusion_scale"), length="diffusion_scale", steps=5000, window=500, dt_cap=1.0,
         description="Gray-Scott (Pearson's scaling), length through a common diffusion scale"),
     "reinforcement": Family(
         "reinforcement", lambda shape: mj.Reinforcement(5.0, 5.0, 0.1),
-        {"threshold": (2.0, 8.0, False), "width": (1.0, 8.0, True), "diffusion": (0.01, 0.5, True)},
-        ("threshold", "width", "diffusion"), length="diffusion", steps=4000, window=500, dt_cap=0.05,
+        {"threshold": (2.0, 8.0, False), "width": (1.0, 8.0, True), "diffusion": (0.25, 0.8, True)},
+        ("threshold", "width", "diffusion"), length="diffusion", length_power=2.0, steps=4000, window=500,
+        dt_cap=0.05,
         description="single-reagent reinforcement (leopard paper eq. 6)"),
     "young": Family(
         "young", lambda shape: mj.YoungCA([(2.3, 6.01, 1.0, -0.3)], denominator=100),
-        {"r_act": (1.0, 5.0, False), "r_inh": (2.0, 12.0, False), "w_inh": (-1.0, -0.05, False),
+        {"r_act": (1.5, 5.0, False), "r_inh": (3.0, 12.0, False), "w_inh": (-1.0, -0.05, False),
          "w_act": (0.2, 2.0, False)},
         ("r_act", "r_inh", "w_inh"), length=None, steps=30, window=10,
         description="Young's activator-inhibitor automaton (paper 002) through its soft relaxation "
