@@ -167,7 +167,7 @@ FAMILIES = {
 
 def stripe_angle(field) -> tuple[float, float]:
     """(direction, coherence) of a field's stripes from its structure tensor: the direction
-    in radians in (-pi/2, pi/2] (0 along a row, positive toward increasing row index,
+    in radians in [-pi/2, pi/2) (0 along a row, positive toward increasing row index,
     the polarity's convention) runs across the mean gradient; coherence in [0, 1] is 0 for
     an isotropic texture and 1 for straight parallel stripes."""
     z = np.asarray(field, np.float64)

@@ -124,9 +124,9 @@ class _Recorder:
 
 
 # One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
-DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4, "design_seeds": 2, "seed": 0,
-            "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs", "max_steps": 40, "binarise": True,
-            "orientation": True, "progress": None}
+DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
+            "design_seeds": 2, "seed": 0, "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs",
+            "max_steps": 40, "binarise": True, "orientation": True, "progress": None}
 
 
 def progress_default() -> bool:
@@ -222,10 +222,9 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
     options = dict(fixed=fixed, bounds=bounds, shape=shape, steps=steps, window=window, seeds=seeds, seed=seed,
                    design_seeds=design_seeds, design=design, n_design=n_design, rounds=rounds, keep=keep,
-                   method=method, max_steps=max_steps,
-                   fallback=fallback, stats=stats, boundary=boundary, species=species, batch_size=batch_size,
-                   noise_seeds=noise_seeds, learning_rate=learning_rate, length_scale=length_scale,
-                   intervals=intervals)
+                   method=method, max_steps=max_steps, fallback=fallback, stats=stats, boundary=boundary,
+                   species=species, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
+                   length_scale=length_scale, intervals=intervals)
     if isinstance(model, str) and model == "auto":
         from ._auto import fit_auto
 
@@ -234,14 +233,14 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
 
 
 def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds, seed, design_seeds, design,
-            n_design, rounds,
-            keep, method, max_steps, fallback, stats, boundary, species, batch_size, noise_seeds, learning_rate,
-            length_scale, intervals, progress, simulator=None, stage_prefix="", screen_only=False) -> FitResult:
+            n_design, rounds, keep, method, max_steps, fallback, stats, boundary, species, batch_size, noise_seeds,
+            learning_rate, length_scale, intervals, progress, simulator=None, stage_prefix="",
+            screen_only=False) -> FitResult:
     """One family's (or model's) fit; `fit` without "auto". `target` is a `Target`."""
     fam, template, names, fam_bounds = _resolve(model, names, shape)
     n_design = 12 * max(len(names), 1) if n_design is None else n_design
-    for name, value, low in (("seeds", seeds, 1), ("design_seeds", design_seeds, 1), ("n_design", n_design, 1), ("keep", keep, 1),
-                             ("max_steps", max_steps, 0), ("batch_size", batch_size, 1)):
+    for name, value, low in (("seeds", seeds, 1), ("design_seeds", design_seeds, 1), ("n_design", n_design, 1),
+                             ("keep", keep, 1), ("max_steps", max_steps, 0), ("batch_size", batch_size, 1)):
         if int(value) < low:
             raise ValueError(f"{name} must be an integer >= {low} (got {value!r})")
     t_start = time.perf_counter()
@@ -424,9 +423,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     timings["total"] = time.perf_counter() - t_start
     history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]
     config = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
-              "method": used, "requested_method": method, "seeds": seeds, "design_seeds": len(design_keys), "seed": seed,
-              "design": design,
-              "n_design": n_design, "rounds": rounds, "keep": keep, "max_steps": max_steps,
+              "method": used, "requested_method": method, "seeds": seeds, "design_seeds": len(design_keys),
+              "seed": seed, "design": design, "n_design": n_design, "rounds": rounds, "keep": keep,
+              "max_steps": max_steps,
               "simulator": sim.describe(), "stats": dataclasses.asdict(stats), "starts": [
                   {"start_loss": f[3], "final_loss": f[0], "method": f[2],
                    "params": {n: float(v) for n, v in zip(names, np.asarray(space.from_free(jnp.asarray(f[1]))))}}

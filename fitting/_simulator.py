@@ -279,8 +279,8 @@ class Simulator(eqx.Module):
                 else self.template.to_dict())  # an Experiment's or a YoungCA's own
         return mj.to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
                                "window": self.window, "species": self.species, "boundary": self.boundary,
-                               "stencil": self.stencil, "anisotropic": list(self.anisotropic), "safety": self.safety, "dt_cap": self.dt_cap, "dt": self.dt,
-                               "fixed": dict(self.fixed)})
+                               "stencil": self.stencil, "anisotropic": list(self.anisotropic), "safety": self.safety,
+                               "dt_cap": self.dt_cap, "dt": self.dt, "fixed": dict(self.fixed)})
 
 
 def _start(template, model, key, shape):

@@ -12,7 +12,7 @@ independent of the lattice size: spatial frequencies are in cycles per cell, lag
 - `dark`: fraction of the dark phase, with a soft (sigmoid) threshold at 0.5;
 - `autocorr`: the radially averaged autocorrelation at a few lags;
 - `pyramid` (multi-scale, in the style of Portilla and Simoncelli): a Laplacian pyramid of
-  `levels` octaves; per octave the log of its band's share of the variance, and between
+  `pyramid_levels` octaves; per octave the log of its band's share of the variance, and between
   neighbouring octaves the correlation of the bands' magnitudes (spots and rosettes couple
   fine and coarse scales where labyrinths at one scale do not);
 - `morphology` of the pigment phase (the field's high values; a photo's after `invert`):
@@ -60,13 +60,13 @@ class StatsConfig:
     binarise: bool = True
     orientation: bool = True
     # octaves of the Laplacian pyramid (0 leaves the group out)
-    levels_pyramid: int = 3
+    pyramid_levels: int = 3
     morphology: bool = True
     # Typical seed-to-seed standard deviation of each group (measured on 64x64 Turing
     # patterns): residuals are divided by these, so the distance is in units of noise.
     noise: tuple = (("spectrum", 0.15), ("wavelength", 0.02), ("quantiles", 0.01), ("dark", 0.005),
-                    ("autocorr", 0.01), ("edges", 0.04), ("moments", 0.02), ("orientation", 0.1), ("pyramid", 0.03),
-                    ("morphology", 0.02))
+                    ("autocorr", 0.01), ("edges", 0.04), ("moments", 0.02), ("orientation", 0.1),
+                    ("pyramid", 0.03), ("morphology", 0.02))
     # extra emphasis per group (1 = as the noise says)
     weights: tuple = ()
 
@@ -77,7 +77,7 @@ class StatsConfig:
     def groups(self) -> tuple:
         """Names of the statistics groups in use, in the order of the statistics vector."""
         names = ["spectrum", "wavelength", "quantiles", "dark", "autocorr", "edges", "moments"]
-        if self.levels_pyramid:
+        if self.pyramid_levels:
             names.append("pyramid")
         if self.morphology:
             names.append("morphology")
@@ -247,8 +247,8 @@ def texture_stats(x, cfg: StatsConfig = StatsConfig()) -> dict:
     out["moments"] = jnp.stack([jnp.mean(centred**3) / sd**3, jnp.mean(centred**4) / var**2])
     ac = jnp.real(jnp.fft.ifft2(jnp.abs(f) ** 2)).ravel() / (z.size * var)
     out["autocorr"] = jnp.asarray(_lag_matrix(shape, tuple(cfg.lags))) @ ac
-    if cfg.levels_pyramid:
-        out["pyramid"] = pyramid_stats(z, cfg.levels_pyramid)
+    if cfg.pyramid_levels:
+        out["pyramid"] = pyramid_stats(z, cfg.pyramid_levels)
     if cfg.morphology:
         out["morphology"] = morphology_stats(z, out["wavelength"])
     if cfg.orientation:

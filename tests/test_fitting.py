@@ -126,7 +126,7 @@ def test_pyramid_statistics_against_the_oracle():
     # period 16 is period 4 two octaves down: its energy peaks in the third band
     assert np.argmax(np.asarray(fitting._stats.pyramid_stats(jnp.asarray(coarse), 3))[:3]) == 2
     assert fitting.StatsConfig().groups()[-3:] == ("pyramid", "morphology", "orientation")
-    assert "pyramid" not in fitting.StatsConfig(levels_pyramid=0).groups()
+    assert "pyramid" not in fitting.StatsConfig(pyramid_levels=0).groups()
 
 
 def test_morphology_statistics_against_the_oracle_and_rosettes():
