@@ -183,6 +183,29 @@ def test_run_is_repeated_step_and_records(method):
     assert float(changed_fraction(ca.run(cells, n - 1).cells, early.cells)) < 0.02
 
 
+def test_a_run_in_pieces_behind_a_progress_bar_equals_one_loop(capsys):
+    """`progress=True` runs pieces of about a twentieth (multiples of save_every) and joins
+    them into exactly what one loop returns: cells, count, convergence, changes, frames,
+    also when the run stops early inside a piece."""
+    ca = YoungCA([YOUNG])
+    cells = random_cells(jax.random.key(3), (24, 24), 1, p=0.1)
+    cases = [dict(), dict(history=True), dict(save_every=3, history=True),
+             dict(stop_at_convergence=True, threshold=0.02, history=True, save_every=2)]
+    for options in cases:
+        one = ca.run(cells, 41, **options)
+        pieces = ca.run(cells, 41, progress="young", **options)
+        for name in ("cells", "steps", "converged", "changes", "frames", "frame_steps"):
+            a, b = getattr(one, name), getattr(pieces, name)
+            assert (a is None) == (b is None), (name, options)
+            if a is not None:
+                np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=f"{name} {options}")
+    assert int(one.steps) < 41  # the last case stopped early, inside a piece
+    life = LifeLike("B3/S23")
+    start = jax.random.bernoulli(jax.random.key(1), 0.4, (20, 20)).astype(jnp.int8)
+    np.testing.assert_array_equal(np.asarray(life.run(start, 25).cells),
+                                  np.asarray(life.run(start, 25, progress=True).cells))
+
+
 @pytest.fixture(scope="module")
 def k2_run():
     """Paper 002 section 4.2 on a reduced lattice: K = 2, both species (3.2, 6, 1, -0.2)."""

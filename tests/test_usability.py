@@ -43,6 +43,10 @@ def test_quiet_prints_only_json(tmp_path, capsys):
     assert main(["ca", "--size", "14", "--steps", "3", "--out", str(tmp_path / "c.png"), "--quiet"]) == 0
     out, err = capsys.readouterr()
     assert json.loads(out)["steps"] == 3 and err == ""
+    # ca's bar (pieces of the run) is named "ca"; --no-progress leaves only the human line
+    assert main(["ca", "--size", "14", "--steps", "3", "--out", str(tmp_path / "c.png"), "--no-progress"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["steps"] == 3 and err.strip().startswith("ca: 3 steps") and "\r" not in err
 
 
 def test_render_draws_every_file_kind(quick_run, tmp_path, capsys):

@@ -87,12 +87,14 @@ class AbstractAutomaton(eqx.Module):
         return jit_step(self, cells, call(self, "_precomputed", plan, cells.shape), plan=plan)
 
     def run(self, cells, steps: int, *, stop_at_convergence: bool = False, threshold=0.01,
-            save_every: int | None = None, history: bool = False) -> AutomatonRun:
+            save_every: int | None = None, history: bool = False, progress=False) -> AutomatonRun:
         """`steps` synchronous updates in one compiled loop, or fewer with
         `stop_at_convergence=True`: then the loop stops after the first update that
         changed fewer than `threshold` (paper 002: 1%) of the cells. `save_every` keeps a
         snapshot every that many updates (`AutomatonRun.frames`); `history` records the
-        fraction of changed cells of every update (`AutomatonRun.changes`)."""
+        fraction of changed cells of every update (`AutomatonRun.changes`). `progress`
+        shows a bar (a string names it): the run goes in pieces of about a twentieth
+        (whole multiples of `save_every`), with the same result as one loop."""
         cells = call(self, "_check_cells", cells)
         check_count(steps, "run.steps", "updates")
         check_range(threshold, "run.threshold (fraction of changed cells)", low=0.0, high=1.0)
@@ -102,8 +104,56 @@ class AbstractAutomaton(eqx.Module):
         plan = call(self, "_plan", cells.shape)
         threshold = np.float32(threshold) if is_concrete(threshold) else jnp.asarray(threshold, jnp.float32)
         pre = call(self, "_precomputed", plan, cells.shape)
-        return jit_run(self, cells, pre, threshold, steps=int(steps), plan=plan, stop=bool(stop_at_convergence),
-                       save_every=save_every, history=bool(history))
+        options = dict(plan=plan, stop=bool(stop_at_convergence), save_every=save_every, history=bool(history))
+        if progress and int(steps) > 1:
+            label = progress if isinstance(progress, str) else type(self).__name__
+            return run_in_pieces(lambda c, n: jit_run(self, c, pre, threshold, steps=n, **options), cells,
+                                 int(steps), save_every, bool(stop_at_convergence), label)
+        return jit_run(self, cells, pre, threshold, steps=int(steps), **options)
+
+
+def run_in_pieces(run_piece, cells, steps: int, save_every: int | None, stop: bool, label: str) -> AutomatonRun:
+    """`steps` updates as `run_piece(cells, n)` calls of about steps / 20 updates each (two
+    compiled lengths at most), behind a progress bar, joined into the AutomatonRun one loop
+    gives: the same cells, count, convergence, changes and frames. With `stop`, a piece
+    whose last update converged ends the run (inside the piece or at its end)."""
+    from tqdm.auto import tqdm
+
+    piece = max(1, steps // 20)
+    if save_every:  # frames fall on the same updates: pieces are whole multiples of save_every
+        piece = max(save_every, piece // save_every * save_every)
+    done, changes, frames, frame_steps, last = 0, [], [], [], None
+    with tqdm(total=steps, desc=label, unit="step", leave=False) as bar:
+        while done < steps:
+            n = min(piece, steps - done)
+            last = run_piece(cells, n)
+            applied = int(last.steps)
+            if last.changes is not None:
+                changes.append(np.asarray(last.changes))
+            if save_every:
+                keep = slice(0 if done == 0 else 1, None)  # a piece's frame 0 is the previous piece's end
+                frames.append(np.asarray(last.frames)[keep])
+                starts = np.asarray(last.frame_steps)[keep]
+                frame_steps.append(np.where(starts >= 0, starts + done, -1))
+            cells, done = last.cells, done + applied
+            bar.update(applied)
+            if stop and bool(last.converged):
+                break
+    joined_changes = joined_frames = joined_steps = None
+    if changes:  # NaN after an early stop, as in one loop
+        joined_changes = np.full((steps,), np.nan, np.float32)
+        flat = np.concatenate(changes)
+        joined_changes[: len(flat)] = flat
+        joined_changes = jnp.asarray(joined_changes)
+    if save_every:  # frames an early stop never reached: zeros at step -1, as in one loop
+        n_frames = steps // save_every + 1
+        joined_frames = np.concatenate(frames)[:n_frames]
+        joined_steps = np.concatenate(frame_steps)[:n_frames]
+        pad = n_frames - len(joined_frames)
+        joined_frames = jnp.asarray(np.concatenate(
+            [joined_frames, np.zeros((pad,) + joined_frames.shape[1:], joined_frames.dtype)]))
+        joined_steps = jnp.asarray(np.concatenate([joined_steps, np.full(pad, -1, joined_steps.dtype)]))
+    return AutomatonRun(last.cells, jnp.int32(done), last.converged, joined_changes, joined_frames, joined_steps)
 
 
 # Plain jax.jit, not eqx.filter_jit: the automaton is a pytree of arrays whose

@@ -48,6 +48,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--frames", action="store_true", help="also write intermediate snapshots (Young automata)")
     p.add_argument("--out", type=Path, default=Path("out") / "ca.png", help="output PNG (default out/ca.png)")
     p.add_argument("--quiet", action="store_true", help="print only the JSON line")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (--quiet has none either)")
     p.set_defaults(func=run_ca_command)
     return p
 
@@ -69,7 +70,7 @@ def _run_ca(args) -> int:
     out = picture_path(args.out)
     shape = (int(args.size),) * int(args.dim)
     run = dict(p=args.p, steps=args.steps, stop=args.stop_at_convergence, seed=args.seed, out=out,
-               threshold=args.threshold)
+               threshold=args.threshold, progress=False if args.no_progress or args.quiet else "ca")
     if args.rule:
         summary = run_life_like(mj.LifeLike(args.rule), shape, **run)
     else:

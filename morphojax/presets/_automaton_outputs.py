@@ -78,14 +78,15 @@ def frames_outputs(out: Path, frames, frame_steps, k, scale) -> list[str]:
 
 
 def run_automaton(ca, shape, *, p=None, steps: int, stop: bool, seed: int, out: Path, frames: bool,
-                  threshold: float = 0.01, scale: int | None = None, extra: dict | None = None) -> dict:
+                  threshold: float = 0.01, scale: int | None = None, extra: dict | None = None,
+                  progress=False) -> dict:
     """One Young automaton run from `random_cells(key(seed), shape, K, p)` with every output
-    written next to `out`; returns the summary."""
+    written next to `out` (`progress`: a bar, as `AbstractAutomaton.run`); returns the summary."""
     k = ca.n_species
     cells0 = mj.random_cells(jax.random.key(seed), shape, k, p)
     save_every = max(1, min(steps, 40) // 10) if frames else None
     result, seconds = timed_run(ca, cells0, steps, stop_at_convergence=stop, threshold=threshold,
-                                save_every=save_every, history=True)
+                                save_every=save_every, history=True, progress=progress)
     n = int(result.steps)
     summary = {"steps": n, "converged": bool(result.converged), "lattice": list(shape),
                **automaton_stats(result.cells, k), "seconds_run": round(seconds, 3),
@@ -106,12 +107,13 @@ def run_automaton(ca, shape, *, p=None, steps: int, stop: bool, seed: int, out: 
 
 
 def run_life_like(life, shape, *, p=None, steps: int, stop: bool, seed: int, out: Path,
-                  threshold: float = 0.01) -> dict:
+                  threshold: float = 0.01, progress=False) -> dict:
     """One life-like run from cells alive with probability `p` (default 0.5) drawn from
     `key(seed)`, with its picture and `.npz` written next to `out`; returns the summary."""
     alive = 0.5 if p is None else p
     cells0 = jax.random.bernoulli(jax.random.key(seed), alive, shape).astype(jnp.int8)
-    result, seconds = timed_run(life, cells0, steps, stop_at_convergence=stop, threshold=threshold)
+    result, seconds = timed_run(life, cells0, steps, stop_at_convergence=stop, threshold=threshold,
+                                progress=progress)
     lattice_picture(1 - np.asarray(result.cells), 1, default_scale(shape)).save(out)
     metadata = {"automaton": "LifeLike", "rule": life.rule, "lattice": list(shape), "seed": seed,
                 "initial": {"alive_probability": alive}, "steps": steps}
