@@ -1,8 +1,8 @@
 """The animal's colours: a palette from the photo's crop, and the fitted coat rendered in it.
 
-`photo_palette` clusters the crop's colours with k-means in CIELAB (scikit-image's rgb2lab,
-a perceptual space where Euclidean distance approximates colour difference), then orders the
-clusters by the mean target value (the normalised channel after `invert`, pigment high) of
+`photo_palette` (morphojax's, shared with `mj.Gradient.from_photo`) clusters the crop's
+colours with k-means in CIELAB (scikit-image's rgb2lab, a perceptual space where Euclidean
+distance approximates colour difference); fitting orders the clusters by the mean target value (the normalised channel after `invert`, pigment high) of
 their pixels. The palette is a list of stops (position, (r, g, b)): position is that mean
 value, so the simulated pigment (also normalised to [0, 1], pigment high) is coloured by
 interpolating between the stops in CIELAB.
@@ -13,45 +13,9 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
+from morphojax import kmeans, photo_palette  # the clustering shared with `mj.Gradient.from_photo`
 
-def kmeans(x, k: int, seed: int = 0, iters: int = 50):
-    """Plain k-means (Lloyd's iterations, k-means++ start) of points x (n, d): (centres (k, d), labels (n,))."""
-    x = np.asarray(x, np.float64)
-    rng = np.random.default_rng(seed)
-    centres = [x[rng.integers(len(x))]]
-    for _ in range(1, k):
-        d2 = np.min([((x - c) ** 2).sum(1) for c in centres], axis=0)
-        p = d2 / d2.sum() if d2.sum() > 0 else None
-        centres.append(x[rng.choice(len(x), p=p)])
-    centres = np.array(centres)
-    labels = np.zeros(len(x), int)
-    for _ in range(iters):
-        labels = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(-1), axis=1)
-        new = np.array([x[labels == j].mean(0) if (labels == j).any() else centres[j] for j in range(k)])
-        if np.allclose(new, centres):
-            break
-        centres = new
-    return centres, labels
-
-
-def photo_palette(rgb, values, k: int = 3, seed: int = 0, max_points: int = 20000) -> list:
-    """Stops [(position, (r, g, b))] of the crop's `k` main colours (rgb: (h, w, 3) in [0, 1]),
-    positioned at the mean of `values` (h, w: the target's normalised channel) over each cluster."""
-    from skimage.color import lab2rgb, rgb2lab
-
-    rgb = np.asarray(rgb, np.float64).reshape(-1, 3)
-    vals = np.asarray(values, np.float64).reshape(-1)
-    if len(rgb) != len(vals):
-        raise ValueError(f"rgb and values must have the same pixels (got {len(rgb)} and {len(vals)})")
-    idx = np.random.default_rng(seed).permutation(len(rgb))[:max_points]
-    lab = rgb2lab(rgb[idx][None])[0]
-    centres, labels = kmeans(lab, k, seed)
-    stops = []
-    for j in range(k):
-        if (labels == j).any():
-            colour = np.clip(lab2rgb(centres[j][None, None])[0, 0], 0, 1)
-            stops.append((float(vals[idx][labels == j].mean()), tuple(int(round(255 * c)) for c in colour)))
-    return sorted(stops)
+__all__ = ["GREY", "colourise", "kmeans", "photo_palette", "render_coat"]
 
 
 GREY = [(0.0, (0, 0, 0)), (1.0, (255, 255, 255))]

@@ -37,6 +37,7 @@ from ._experiment import Experiment, Initial, Phase, Result, load_experiment, ru
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
 from ._animation import save_animation
+from ._palette import kmeans, photo_palette
 from ._explore import Explorer, explore
 from ._render_hex import hex_image, render_hex
 from ._render_mesh import mesh_image, vertex_colours
@@ -121,6 +122,7 @@ __all__ = [
     "LifeLike",
     "leopard_row_weights",
     "load_experiment",
+    "kmeans",
     "load_npz",
     "load_sweep",
     "map_image",
@@ -135,6 +137,7 @@ __all__ = [
     "one_hot_cells",
     "order_parameter",
     "paper_state",
+    "photo_palette",
     "parameter_map",
     "parse_rule",
     "Phase",

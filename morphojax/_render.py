@@ -44,6 +44,18 @@ class Gradient:
             raise ValueError(f"Gradient stop positions must increase within [0, 1] (got {positions})")
         object.__setattr__(self, "stops", stops)
 
+    @classmethod
+    def from_photo(cls, source, crop=None, k: int = 3, pigment: str = "dark", seed: int = 0) -> "Gradient":
+        """The `k` main colours of a photo (a path, pillow image or (h, w, 3) RGB array;
+        `crop` = (x0, y0, x1, y1) pixels), from k-means in CIELAB, as a gradient ordered by
+        lightness: with pigment="dark" (default) the lightest colour takes a field's low
+        end and the darkest its high end (dark spots = high concentration), "light" the
+        reverse. Stops sit at the clusters' mean lightness, stretched to [0, 1]. The fitting
+        package colours fitted coats with the same clustering (`photo_palette`)."""
+        from ._palette import gradient_from_photo
+
+        return gradient_from_photo(source, crop=crop, k=k, pigment=pigment, seed=seed)
+
     def table(self) -> np.ndarray:
         """The 256-entry RGB lookup table (uint8, shape (256, 3)) interpolated between the colour stops."""
         pos = np.array([p for p, _ in self.stops])

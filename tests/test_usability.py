@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import fitting
 import morphojax as mj
 from morphojax.cli import main
 
@@ -104,6 +105,35 @@ def test_animation_has_one_colour_range(tmp_path):
     state = mj.paper_state(jax.random.key(0), (10, 10))
     _, rolled = mj.rollout(mj.Turing(), state, steps=20, dt=0.01, every=5)
     assert Image.open(mj.save_animation(tmp_path / "r.gif", rolled, species="b")).n_frames == 4
+
+
+def test_gradient_from_a_photo_and_render_with_it(quick_run, tmp_path):
+    """A photo's main colours as a Gradient (shared with fitting's palette): cream fur with
+    brown spots gives cream at the low end and brown at the high end (pigment="dark"), the
+    reverse with pigment="light"; `render --palette-from` draws a result in them."""
+    rng = np.random.default_rng(0)
+    mask = rng.uniform(size=(40, 50)) < 0.3
+    brown, cream = np.array([120, 70, 20]), np.array([240, 225, 190])
+    rgb = np.where(mask[..., None], brown, cream).astype(np.uint8)
+    photo = tmp_path / "coat.png"
+    Image.fromarray(rgb).save(photo)
+    g = mj.Gradient.from_photo(photo, k=2)
+    assert [p for p, _ in g.stops] == [0.0, 1.0]
+    np.testing.assert_allclose(g.stops[0][1], cream, atol=3)
+    np.testing.assert_allclose(g.stops[1][1], brown, atol=3)
+    light = mj.Gradient.from_photo(rgb / 255.0, k=2, pigment="light")  # an RGB array works too
+    np.testing.assert_allclose(light.stops[0][1], brown, atol=3)
+    assert mj.photo_palette is fitting.photo_palette
+    with pytest.raises(ValueError, match="pigment"):
+        mj.Gradient.from_photo(photo, pigment="spots")
+    with pytest.raises(ValueError, match="crop"):
+        mj.Gradient.from_photo(photo, crop=(0, 0, 99, 10))
+    _, folder = quick_run
+    out = tmp_path / "coloured.png"
+    assert main(["render", str(folder / "out" / "fig4-r12-lb.npz"), "--palette-from", str(photo),
+                 "--out", str(out)]) == 0
+    colours = np.asarray(Image.open(out).convert("RGB")).reshape(-1, 3)
+    assert np.abs(colours - cream).sum(1).min() < 12 and np.abs(colours - brown).sum(1).min() < 12
 
 
 def test_complex_concentrations_are_refused():

@@ -3,7 +3,7 @@
     morphojax presets                         list the presets
     morphojax run NAME [--out F.png] [--seed N] [--quick] [--frames] [--gif F.gif] [--quiet]
     morphojax resume CHECKPOINT.npz [--out F.png]
-    morphojax render FILE.npz [--species b] [--cmap inferno] --out F.png
+    morphojax render FILE.npz [--species b] [--cmap inferno | --palette-from PHOTO] --out F.png
 
 Files go next to `--out` (default `out/NAME.png`, never the working folder itself). Each run
 prints one JSON line on stdout and one line for people on stderr (`--quiet`: JSON only).
@@ -73,6 +73,9 @@ def register(sub) -> None:
     p.add_argument("result", type=Path)
     p.add_argument("--species", default=None, help="species name (default: the experiment's choice, else the last)")
     p.add_argument("--cmap", default=None, help="inferno, viridis, gray, giraffe, ...")
+    p.add_argument("--palette-from", type=Path, default=None, metavar="PHOTO",
+                   help="colour with a photo's main colours instead (mj.Gradient.from_photo: dark = high)")
+    p.add_argument("--palette-crop", default=None, metavar="X0,Y0,X1,Y1", help="the photo's region for --palette-from")
     p.add_argument("--scale", type=int, default=None, help="pixels per cell (default 2; automata as `ca` draws them)")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=_cmd_render)
@@ -250,6 +253,15 @@ def _cmd_resume(args):
 def _cmd_render(args):
     out = picture_path(args.out)
     kind = file_kind(args.result)
+    if args.palette_from is not None:
+        if args.cmap is not None:
+            raise ValueError("give --cmap or --palette-from, not both")
+        crop = None
+        if args.palette_crop:
+            crop = [int(v) for v in args.palette_crop.split(",")]
+            if len(crop) != 4:
+                raise ValueError(f"--palette-crop takes X0,Y0,X1,Y1 (got {args.palette_crop!r})")
+        args.cmap = mj.Gradient.from_photo(args.palette_from, crop=crop)
     if kind == "sweep":
         mj.load_sweep(args.result).montage(species=args.species if args.species is not None else -1,
                                            cmap=args.cmap or "inferno").save(out)
