@@ -38,7 +38,7 @@ from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_j
 from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
 from ._animation import save_animation
 from ._palette import kmeans, photo_palette
-from ._explore import Explorer, explore
+from ._explore import Explorer, SweepExplorer, explore, explore_sweep
 from ._render_hex import hex_image, render_hex
 from ._render_mesh import mesh_image, vertex_colours
 from .presets import PRESETS, leopard_row_weights, preset
@@ -99,7 +99,9 @@ __all__ = [
     "DISTRIBUTIONS",
     "Experiment",
     "explore",
+    "explore_sweep",
     "Explorer",
+    "SweepExplorer",
     "experiment_picture",
     "FitzHughNagumo",
     "GiererMeinhardt",

@@ -1,10 +1,16 @@
-"""Live exploration in Jupyter: sliders for a model's parameters and a picture that re-runs.
+"""Live exploration in Jupyter: sliders for a model's parameters and a picture that re-runs,
+and a clickable parameter map of a sweep.
 
 `mj.explore(model, state, steps, dt)` shows one slider per scalar parameter and the run's
 final pattern (Ready-style). The run is one compiled program whose parameters are traced
 arrays, so moving a slider re-runs it without compiling again; a dt beyond the stability
-limit of the new values is reported instead of run. Needs ipywidgets (`pip install -e
-".[notebook]"`).
+limit of the new values is reported instead of run.
+
+`mj.explore_sweep(result)` draws a sweep as a map of buttons, one per member laid out as
+the montage (rows: the first parameter, columns: the last), coloured by a column of its
+table (the dominant wavelength by default, or the pattern class); clicking one opens that
+member: its final pattern, its parameters and descriptors. Needs ipywidgets (`pip install
+-e ".[notebook]"`).
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import time
 import jax
 import numpy as np
 
-from ._render import to_image
+from ._render import colormap_table, normalise, to_image
 from ._simulate import simulate
 from .domains import as_domain
 
@@ -105,3 +111,90 @@ def explore(model, state, steps: int, dt, **kwargs) -> Explorer:
     `cmap`, `scale` for the picture, and any `simulate` option (domain, bounds, ...).
     """
     return Explorer(model, state, steps, dt, **kwargs)
+
+
+class SweepExplorer:
+    """A sweep's parameter map as buttons and the member under the last click.
+
+    Attributes:
+        result: the `SweepResult`; buttons: one per member (flat order); image: the opened
+        member's final pattern; details: its parameters and descriptors; selected: its
+        flat index (None before a click); widget: what Jupyter shows.
+    """
+
+    def __init__(self, result, colour_by: str = "wavelength", species=-1, cmap="inferno", scale: int = 3):
+        import ipywidgets as widgets
+
+        self.result, self.species, self.cmap, self.scale = result, species, cmap, scale
+        self.selected = None
+        colours = _map_colours(result, colour_by)
+        rows, cols = _grid(result.shape)
+        self.buttons = []
+        for i in range(len(result)):
+            values = {n: float(result.values[n][i]) for n in result.names}
+            unstable = result.blowup_step[i] >= 0
+            button = widgets.Button(description="NaN" if unstable else "", tooltip=_label(values),
+                                    layout=widgets.Layout(width="28px", height="28px", padding="0"))
+            button.style.button_color = "#888888" if unstable else colours[i]
+            button.on_click(lambda _, i=i: self.open(i))
+            self.buttons.append(button)
+        grid = widgets.GridBox(self.buttons, layout=widgets.Layout(
+            grid_template_columns=f"repeat({cols}, 30px)", grid_gap="2px"))
+        axes = f"rows: {', '.join(result.names[:-1]) or '-'}; columns: {result.names[-1]}" if rows > 1 else \
+            f"columns: {', '.join(result.names)}"
+        caption = widgets.HTML(f"colour: {colour_by}; {axes}; click a member to open it")
+        self.image = widgets.Image(format="png")
+        self.details = widgets.HTML()
+        self.widget = widgets.HBox([widgets.VBox([caption, grid]), widgets.VBox([self.image, self.details])])
+
+    def open(self, i) -> None:
+        """Show member `i` (flat index or grid tuple): its final pattern, parameters and table row."""
+        from ._sweep_result import species_index
+
+        i = self.result.index(i)
+        self.selected = i
+        k = species_index(self.result.species, self.species)
+        field = self.result.arrays()[..., k, :, :].reshape((len(self.result),) + self.result.arrays().shape[-2:])[i]
+        buffer = io.BytesIO()
+        to_image(np.where(np.isfinite(field), field, 0.0), cmap=self.cmap, scale=self.scale).save(buffer, format="PNG")
+        self.image.value = buffer.getvalue()
+        row = self.result.table[i] if self.result.table else {}
+        shown = {k: v for k, v in row.items() if k != "index"}
+        self.details.value = f"<b>member {i}</b><br>" + "<br>".join(
+            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in shown.items())
+
+    def _repr_mimebundle_(self, **kwargs):
+        return self.widget._repr_mimebundle_(**kwargs)
+
+
+def _grid(shape) -> tuple[int, int]:
+    """(rows, cols) of the map: the last axis is the columns, the others combine into rows."""
+    cols = int(shape[-1])
+    return int(np.prod(shape[:-1])) if len(shape) > 1 else 1, cols
+
+
+def _label(values: dict) -> str:
+    return ", ".join(f"{n}={v:.3g}" for n, v in values.items())
+
+
+def _map_colours(result, column: str) -> list:
+    """A hex colour per member: numeric columns through the colour map over their finite
+    range, categories (e.g. "pattern") each their own colour."""
+    data = np.asarray(result.column(column)).ravel()
+    if data.dtype.kind in "fiu":
+        values = normalise(data.astype(float))
+        table = colormap_table("viridis")
+        picks = [table[int(round(v * 255))] for v in values]
+    else:
+        names = sorted(set(data.tolist()))
+        table = colormap_table("viridis")
+        picks = [table[int(round(255 * names.index(v) / max(len(names) - 1, 1)))] for v in data.tolist()]
+    return ["#%02x%02x%02x" % tuple(int(c) for c in rgb) for rgb in picks]
+
+
+def explore_sweep(result, colour_by: str = "wavelength", **kwargs) -> SweepExplorer:
+    """A clickable parameter map of a `sweep` result (in Jupyter): one button per member,
+    coloured by the table column `colour_by` ("wavelength", "pattern", "spots", ... or a
+    varied parameter); a click shows that member's final pattern, parameters and
+    descriptors. Keyword arguments: `species`, `cmap`, `scale` of the picture."""
+    return SweepExplorer(result, colour_by, **kwargs)

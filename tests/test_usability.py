@@ -211,3 +211,26 @@ def test_explorer_builds_and_reruns_on_a_slider_move():
     assert "largest stable dt is" in ex.status.value and ex.image.value == moved
     with pytest.raises(ValueError, match="not finite scalar parameters"):
         mj.explore(mj.Turing(), state, 10, 0.01, names=["colour"])
+
+
+def test_sweep_map_opens_the_member_clicked():
+    """The clickable parameter map: one button per member in the montage's layout, coloured
+    by a table column; a click shows that member's pattern and table row (headless)."""
+    pytest.importorskip("ipywidgets")
+    res = mj.sweep(mj.Turing(scale=3.0), vary={"ratio": [1.0, 12.0, 20.0], "scale": [2.0, 3.0]},
+                   state=mj.paper_state(jax.random.key(0), (16, 16)), steps=800, dt=0.006, progress=False)
+    explorer = mj.explore_sweep(res, colour_by="wavelength", scale=2)
+    assert len(explorer.buttons) == 6 and explorer.selected is None
+    assert "repeat(2, 30px)" in explorer.widget.children[0].children[1].layout.grid_template_columns
+    colours = {b.style.button_color for b in explorer.buttons}
+    assert len(colours) > 1 and all(c.startswith("#") for c in colours)
+    explorer.buttons[3].click()  # ratio 12, scale 3
+    assert explorer.selected == 3 and "ratio = 12" in explorer.details.value
+    import io as _io
+    shown = np.asarray(Image.open(_io.BytesIO(explorer.image.value)).convert("RGB"))
+    expected = np.asarray(mj.to_image(res.arrays()[1, 1, 1], scale=2))
+    np.testing.assert_array_equal(shown, expected)
+    by_pattern = mj.explore_sweep(res, colour_by="pattern")
+    assert len(by_pattern.buttons) == 6
+    with pytest.raises(ValueError, match="no column"):
+        mj.explore_sweep(res, colour_by="colourfulness")
