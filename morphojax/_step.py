@@ -80,7 +80,7 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
         """New values of the cells `x` (species, ...) given their diffusion terms: reaction,
         diffusion, production, clamp. Species by species, stacked once at the end, so that
         XLA computes the whole update in one loop."""
-        lower, upper = per_species(m.lower), per_species(m.upper)
+        lower, upper = per_species(m.lower, domain.ndim), per_species(m.upper, domain.ndim)
         rates = m.reaction(x)
         parts = []
         for i in range(x.shape[0]):
@@ -106,7 +106,7 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
             amount = src.production(c.size, source_key(key, c.step, j), x[src.index])
             production[src.index] = production[src.index] + amount if src.index in production else amount
         mask = domain.active_mask(x.shape[1:], c.size) if cfg.dynamic else None
-        terms = domain.diffusion(c.p, per_species(model.diffusion()))
+        terms = domain.diffusion(c.p, per_species(model.diffusion(), domain.ndim))
         new = update(model, x, terms, production, mask)
         p = domain.write(c.p, new, c.size, cfg.dynamic)
         size, overflow = c.size, c.overflow

@@ -350,9 +350,7 @@ class Mesh(AbstractDomain):
         return [_per_vertex(rates[i]) * op[i] for i in range(op.shape[0])]
 
     def write(self, carried, new, size, dynamic):
-        # the step broadcasts per-species numbers as lattice (1, 1) arrays, which puts a
-        # unit axis in front of the vertices: the carried layout stays (species, vertices)
-        return jnp.reshape(new, carried.shape)
+        return new  # per-species numbers reach the step shaped for this domain's one axis
 
     def active_mask(self, shape, size):
         return jnp.ones(tuple(shape), bool)
@@ -432,7 +430,6 @@ class Mesh(AbstractDomain):
 
 
 def _per_vertex(rate):
-    """A species' rate as a scalar or a (vertices,) array: per-species numbers reach the
-    domain shaped (1, 1) for a lattice; on a mesh only the last axis counts."""
+    """A species' rate as a scalar, (1,) or a (vertices,) array (the last axis counts)."""
     rate = jnp.asarray(rate)
     return rate.reshape(rate.shape[-1:]) if rate.ndim >= 2 else rate
