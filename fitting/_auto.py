@@ -2,7 +2,8 @@
 
 Screening runs each family's global design only (no local search, no intervals) on a lattice
 of half the rows and columns (at least 24; wavelengths are in cells, so the statistics stay
-comparable), with two seeds. The `top` families with the lowest penalised screening loss are
+comparable), with two seeds; oriented families screen on the full lattice, since a small
+torus admits only the few stripe directions and spacings that close around it. The `top` families with the lowest penalised screening loss are
 then fitted in full and the best of those is returned.
 
 Ranking: a penalised synthetic likelihood. Every family's `score` is the distance between
@@ -71,13 +72,16 @@ def fit_auto(target, names, *, families=None, top=2, progress, **options):
         raise ValueError(f"top must be an integer >= 1 (got {top!r})")
     cfg = options["stats"]
     rows, cols = options["shape"]
-    screen_shape = (max(24, rows // 2), max(24, cols // 2))
+    half = (max(24, rows // 2), max(24, cols // 2))
     fixed = options.get("fixed") or {}
     screened = []
     for f in chosen:
         fam = FAMILIES[f]
         mine = _names_for(fam, names)
-        opts = {**options, "shape": screen_shape, "seeds": 2, "rounds": 0, "keep": 1, "max_steps": 0,
+        # oriented families screen on the full lattice: a small torus admits only a few
+        # stripe directions and spacings (those that close around it), which ranked the
+        # zebra's stripes below labyrinths on 32x32
+        opts = {**options, "shape": tuple(options["shape"]) if fam.oriented else half, "seeds": 2, "rounds": 0, "keep": 1, "max_steps": 0,
                 "intervals": False, "n_design": 6 * len(mine),
                 "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
         res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)

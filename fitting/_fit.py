@@ -3,8 +3,9 @@
 1. Target statistics (`texture_stats` of the target field).
 2. Global stage: a coarse design (Latin hypercube or grid) over the parameter bounds,
    evaluated as one vmapped batch (design points x `design_seeds` seeds); each point is
-   also moved along the family's length parameter to the target's wavelength. Then
-   `rounds` Latin hypercubes in boxes around the best `keep` points (not moved again).
+   also moved along the family's length parameter to the target's wavelength (and an
+   oriented family's angle turned to the target's stripes). Then `rounds` Latin
+   hypercubes in boxes around the best `keep` points (not moved again).
 3. Noise: at the best design point the seed-to-seed spread of each statistic is measured,
    so the loss is in units of simulation noise (a diagonal synthetic likelihood).
 4. Local stage from each kept point: an Optimistix solver on the unconstrained
@@ -253,10 +254,12 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
                                  anisotropic=fam.anisotropic if fam is not None else ())
     sim.check_names(names + [k for k, _ in sim.fixed])
     all_bounds = {n: fam_bounds[n] for n in names if n in fam_bounds}
+    stripes = None  # the target's stripe direction, where an oriented family fits an angle
     if "angle" in names and sim.anisotropic:  # the half-turn centred on the target's stripes
-        from ._families import orientation_bounds
+        from ._families import orientation_bounds, stripe_angle
 
         all_bounds["angle"] = orientation_bounds(target.field)
+        stripes = stripe_angle(target.field)[0]
     all_bounds.update({n: b for n, b in (bounds or {}).items() if n in names})
     space = ParamSpace.build(names, all_bounds)
     if length_scale == "family":
@@ -272,7 +275,8 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     from ._progress import Progress
 
     label = stage_prefix + (fam.name if fam is not None else "fit")
-    total = n_design * (1 + int(rounds) + (1 if length_scale in names else 0)) + keep * max(max_steps, 1) * 2
+    moves = length_scale in names or stripes is not None
+    total = n_design * (1 + int(rounds) + (1 if moves else 0)) + keep * max(max_steps, 1) * 2
     bar = Progress(label, total) if progress else None
     rec = _Recorder(bar)
     _RECORDERS.append(rec)
@@ -281,7 +285,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
                       design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
                       fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
                       length_scale=length_scale, length_power=power, seeds=seeds,
-                      design_keys=keys[: min(int(design_seeds), int(seeds))], intervals=intervals,
+                      design_keys=keys[: min(int(design_seeds), int(seeds))], stripes=stripes, intervals=intervals,
                       screen_only=screen_only)
     finally:
         _RECORDERS.remove(rec)
@@ -295,7 +299,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
 
 def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, *, seed, design, n_design, rounds,
          keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, length_power,
-         seeds, design_keys, intervals, screen_only=False):
+         seeds, design_keys, stripes, intervals, screen_only=False):
     # ---- global stage: a coarse design, then `rounds` finer designs around the best ------
     t0 = time.perf_counter()
 
@@ -310,19 +314,25 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         return np.where(np.isfinite(vals), vals, np.inf), lams
 
     length = names.index(length_scale) if length_scale in names else None
+    angle = names.index("angle") if stripes is not None else None
 
     def evaluate(unit_points, move):
-        """Losses at the points; with a length-scale parameter and `move`, each point is
-        also moved along it to the value whose dominant wavelength matches the target's
-        (wavelength ~ length ** length_power, the family's declaration), keeping the better."""
+        """Losses at the points; with `move`, each point is also moved to the target's
+        wavelength along the family's length parameter (wavelength ~ length **
+        length_power, the family's declaration) and, for an oriented family, turned to the
+        target's stripe direction (`stripes`), keeping the better of the two."""
         thetas = np.asarray(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
         vals, lams = run_batch(thetas)
-        if length is not None and move:
-            factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** (
-                1.0 / length_power)
+        if move and (length is not None or angle is not None):
             moved = thetas.copy()
-            moved[:, length] = np.clip(np.nan_to_num(thetas[:, length] * factor, nan=thetas[:, length]),
-                                       space.low[length], space.high[length])
+            if length is not None:
+                factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** (
+                    1.0 / length_power)
+                moved[:, length] = np.clip(np.nan_to_num(thetas[:, length] * factor, nan=thetas[:, length]),
+                                           space.low[length], space.high[length])
+            if angle is not None:  # the direction modulo pi, inside the angle's bounds
+                low = space.low[angle]
+                moved[:, angle] = np.clip(low + (stripes - low) % np.pi, low, space.high[angle])
             for value, theta in zip(vals, thetas):
                 rec(value, space.to_free(theta))
             vals2, _ = run_batch(moved)
