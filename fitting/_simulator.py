@@ -222,7 +222,7 @@ class Simulator(eqx.Module):
             field = state.fields[self._species(state.names)]
         else:
             exp = self.build(params)
-            result = mj.run_experiment(exp, key=key, grad_window=self.window)
+            result = mj.run_experiment(exp, key=key, grad_window=self.window, throw=False)
             state = result.state
             rows, cols = self.final_shape()
             field = state.fields[self._species(state.names), :rows, :cols]

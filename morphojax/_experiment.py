@@ -225,7 +225,7 @@ class Result:
 
 def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: bool = False,
                    progress: bool = False, checkpoint_path=None, checkpoint_every: int | None = None, resume=None,
-                   stop_after: int | None = None, grad_window: int | None = None) -> Result:
+                   stop_after: int | None = None, grad_window: int | None = None, throw: bool = True) -> Result:
     """Run every phase of `experiment` from its initial state (or resume a checkpoint).
 
     Pure in (experiment, key) like `simulate`: usable under `jax.jit`, `jax.vmap` and
@@ -245,6 +245,9 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
         grad_window: differentiate only through the last `grad_window` steps of the run; the
             state before them is treated as a constant (truncated backpropagation, see the
             fitting documentation for why long horizons need it).
+        throw: raise `SimulationError` when a phase blows up or overflows its capacity (as
+            `simulate`); False returns the state as it is (a fit scores such a point as bad
+            instead of stopping).
     """
     if stop_after is not None:
         check_range(stop_after, "run_experiment.stop_after (steps)", low=1)
@@ -283,7 +286,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
             state = phase.prepare(state)
             origin = int(state.step) if is_concrete(state.step) else state.step
         kwargs = dict(domain=phase.domain, bounds=phase.bounds, growth=phase.growth,
-                      sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin,
+                      sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin, throw=throw,
                       progress=(phase.name or f"phase {i + 1}") if progress else False)
         marks = set(_frame_steps(phase)) if frames and phase.frames else set()
         saves = set(range(phase_step + checkpoint_every, phase.steps, checkpoint_every)) if checkpoint_every else set()

@@ -253,6 +253,12 @@ def test_simulator_with_a_growing_experiment():
     assert field.shape == (19, 19) and np.isfinite(np.asarray(field)).all()
     g = jax.grad(lambda r: jnp.mean(sim.run({"ratio": r}, jax.random.key(0)) ** 2))(8.0)
     assert np.isfinite(float(g)) and float(g) != 0.0
+    # a point whose run blows up (dt far beyond the limit of scale 40) scores as a flat
+    # field instead of stopping the fit (auto's screen of the leopard family once did)
+    blown = jax.jit(lambda s: sim.run({"static:scale": s}, jax.random.key(0)))(40.0)
+    assert np.isfinite(np.asarray(blown)).all()
+    with pytest.raises(ValueError, match="stability limit"):  # eagerly, the dt check refuses it first
+        mj.run_experiment(sim.build({"static:scale": 40.0}), key=jax.random.key(0))
 
 
 def test_fit_a_growing_experiment():
