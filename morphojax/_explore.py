@@ -154,7 +154,8 @@ class SweepExplorer:
         i = self.result.index(i)
         self.selected = i
         k = species_index(self.result.species, self.species)
-        field = self.result.arrays()[..., k, :, :].reshape((len(self.result),) + self.result.arrays().shape[-2:])[i]
+        arrays = self.result.arrays()
+        field = arrays.reshape((len(self.result),) + arrays.shape[-3:])[i, k]
         buffer = io.BytesIO()
         to_image(np.where(np.isfinite(field), field, 0.0), cmap=self.cmap, scale=self.scale).save(buffer, format="PNG")
         self.image.value = buffer.getvalue()
@@ -181,13 +182,11 @@ def _map_colours(result, column: str) -> list:
     """A hex colour per member: numeric columns through the colour map over their finite
     range, categories (e.g. "pattern") each their own colour."""
     data = np.asarray(result.column(column)).ravel()
+    table = colormap_table("viridis")
     if data.dtype.kind in "fiu":
-        values = normalise(data.astype(float))
-        table = colormap_table("viridis")
-        picks = [table[int(round(v * 255))] for v in values]
+        picks = [table[int(round(v * 255))] for v in normalise(data.astype(float))]
     else:
         names = sorted(set(data.tolist()))
-        table = colormap_table("viridis")
         picks = [table[int(round(255 * names.index(v) / max(len(names) - 1, 1)))] for v in data.tolist()]
     return ["#%02x%02x%02x" % tuple(int(c) for c in rgb) for rgb in picks]
 
