@@ -347,7 +347,8 @@ class Mesh(AbstractDomain):
 
     def diffusion(self, carried, rates):
         op = self._operator(carried)
-        return [_per_vertex(rates[i]) * op[i] for i in range(op.shape[0])]
+        # the step shapes each species' rate for one spatial axis: (1,) or (vertices,)
+        return [rates[i] * op[i] for i in range(op.shape[0])]
 
     def write(self, carried, new, size, dynamic):
         return new  # per-species numbers reach the step shaped for this domain's one axis
@@ -428,8 +429,3 @@ class Mesh(AbstractDomain):
         v, f = revolve(r, z, spacing, closed=False)
         return cls(v[:, [2, 0, 1]], f, **options)  # the axis along x (a cyclic swap keeps the winding)
 
-
-def _per_vertex(rate):
-    """A species' rate as a scalar, (1,) or a (vertices,) array (the last axis counts)."""
-    rate = jnp.asarray(rate)
-    return rate.reshape(rate.shape[-1:]) if rate.ndim >= 2 else rate
