@@ -183,9 +183,8 @@ def stripe_angle(field) -> tuple[float, float]:
     return float(direction), float(math.hypot(jxx - jyy, 2.0 * jxy) / norm)
 
 
-def orientation_bounds(field) -> tuple:
-    """Bounds of a fitted `angle`: the half-turn centred on the field's stripe direction."""
-    direction, _ = stripe_angle(field)
+def orientation_bounds(direction: float) -> tuple:
+    """Bounds of a fitted `angle`: the half-turn centred on a stripe direction (radians)."""
     return (direction - math.pi / 2, direction + math.pi / 2, False)
 
 

@@ -258,8 +258,8 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     if "angle" in names and sim.anisotropic:  # the half-turn centred on the target's stripes
         from ._families import orientation_bounds, stripe_angle
 
-        all_bounds["angle"] = orientation_bounds(target.field)
         stripes = stripe_angle(target.field)[0]
+        all_bounds["angle"] = orientation_bounds(stripes)
     all_bounds.update({n: b for n, b in (bounds or {}).items() if n in names})
     space = ParamSpace.build(names, all_bounds)
     if length_scale == "family":

@@ -187,12 +187,16 @@ def _max_filter(z, radius: int):
 LOCAL_SIGMA = 1.7  # cells: the local structure tensor's window, a sixth of a 10-cell wavelength
 
 
+def _gradients(z):
+    """Central differences along a row (x, increasing column) and a column (y), periodic."""
+    return 0.5 * (jnp.roll(z, -1, 1) - jnp.roll(z, 1, 1)), 0.5 * (jnp.roll(z, -1, 0) - jnp.roll(z, 1, 0))
+
+
 def morphology_stats(z, wavelength):
     """Local coherence and the light area closings fill, of the pigment `z` (high = pigment,
     in [0, 1]), at two windows; see the module docstring. `wavelength` in cells sets the
     windows (radius f x wavelength, clipped to 1..6 cells)."""
-    gx = 0.5 * (jnp.roll(z, -1, 1) - jnp.roll(z, 1, 1))
-    gy = 0.5 * (jnp.roll(z, -1, 0) - jnp.roll(z, 1, 0))
+    gx, gy = _gradients(z)
     # the tensor smoothed by a periodic Gaussian of sigma LOCAL_SIGMA cells, through the FFT
     # (as one product: a cascade of small blurs costs ten times as much to compile and run)
     fy = np.fft.fftfreq(z.shape[0])[:, None]
@@ -237,8 +241,7 @@ def texture_stats(x, cfg: StatsConfig = StatsConfig()) -> dict:
     out["wavelength"] = 1.0 / jnp.sum(w * radius)
     out["quantiles"] = jnp.quantile(z, jnp.asarray(cfg.levels, z.dtype))
     out["dark"] = jnp.mean(jax.nn.sigmoid((0.5 - z) / cfg.softness))
-    gx = 0.5 * (jnp.roll(z, -1, 1) - jnp.roll(z, 1, 1))
-    gy = 0.5 * (jnp.roll(z, -1, 0) - jnp.roll(z, 1, 0))
+    gx, gy = _gradients(z)
     grad2 = gx * gx + gy * gy
     # interface density (edge length per cell, times the wavelength to be scale-free) and
     # the third and fourth moments (spots skew one way, holes the other, stripes neither)
