@@ -222,9 +222,9 @@ def _run_chunks(model, growth, sources, starts, member_keys, values, dt, devs, c
     parts = []
     bar = None
     if progress and firsts:
-        from tqdm.auto import tqdm
+        from ._progress import progress_bar
 
-        bar = tqdm(total=hi - lo, desc="sweep", unit="member", leave=False)
+        bar = progress_bar(hi - lo, "sweep", unit="member")
 
     def done(part):
         parts.append(part)

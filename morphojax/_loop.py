@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from ._checks import is_concrete
+from ._progress import progress_bar
 from ._state import State
 from ._status import RunStatus
 from ._step import Carry, Config, growth_key, make_step
@@ -202,9 +203,7 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
             rungs = None if whole[0] is None else tuple(b[0] for b in whole[0])
     bar = None
     if len(pieces) > 1 or (progress and steps):
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=steps, desc=description, unit="step", leave=False)
+        bar = progress_bar(steps, description)
     frames_all, compiled = [], set()
     status = RunStatus.healthy()
     current = state

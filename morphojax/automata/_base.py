@@ -117,13 +117,13 @@ def run_in_pieces(run_piece, cells, steps: int, save_every: int | None, stop: bo
     compiled lengths at most), behind a progress bar, joined into the AutomatonRun one loop
     gives: the same cells, count, convergence, changes and frames. With `stop`, a piece
     whose last update converged ends the run (inside the piece or at its end)."""
-    from tqdm.auto import tqdm
+    from .._progress import progress_bar
 
     piece = max(1, steps // 20)
     if save_every:  # frames fall on the same updates: pieces are whole multiples of save_every
         piece = max(save_every, piece // save_every * save_every)
     done, changes, frames, frame_steps, last = 0, [], [], [], None
-    with tqdm(total=steps, desc=label, unit="step", leave=False) as bar:
+    with progress_bar(steps, label) as bar:
         while done < steps:
             n = min(piece, steps - done)
             last = run_piece(cells, n)

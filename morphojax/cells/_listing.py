@@ -239,7 +239,8 @@ class Listing:
         start (up to the order of float sums), and the capacity follows the tissue instead
         of being guessed.
         """
-        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_room, progress_bar, simulate_cells
+        from .._progress import progress_bar
+        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_room, simulate_cells
 
         iterations = [int(i) for i in iterations]
         if not iterations or any(b <= a for a, b in zip(iterations, iterations[1:])) or iterations[0] < 0:
@@ -262,7 +263,7 @@ class Listing:
         last = iterations[-1]
         piece = max(1, last // PIECES)
         ends = sorted(set(iterations) | set(range(piece, last, piece)))
-        bar = progress_bar(last, self.name if progress is True else progress) if progress else None
+        bar = progress_bar(last, self.name if progress is True else progress, unit="iteration") if progress else None
         out, shots, retries = cells.with_capacity(int(capacity)), [], 0
         try:
             for end in ends:

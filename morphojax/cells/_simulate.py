@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._checks import as_float_array, check_count, check_finite, check_range, is_concrete
+from .._progress import progress_bar
 from .._status import SimulationError
 from ..models import AbstractModel
 from ._neighbours import Search, table_size_for
@@ -130,7 +131,7 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
     if not progress or steps < 2 or not is_concrete(cells, rules, settings):
         return _run(cells, neighbours, rules, settings, key, steps)[0]
     piece = max(1, steps // PIECES)
-    with progress_bar(steps, progress if isinstance(progress, str) else "cells") as bar:
+    with progress_bar(steps, progress if isinstance(progress, str) else "cells", unit="iteration") as bar:
         done = 0
         while done < steps:
             n = min(piece, steps - done)
@@ -140,13 +141,6 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
             if int(cells.nonfinite_step) >= 0:
                 break
     return cells
-
-
-def progress_bar(total: int, label: str):
-    """The bar every cell run shows: `total` iterations, named `label`, gone when done."""
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc=label, unit="iteration", leave=False)
 
 
 @eqx.filter_jit
