@@ -30,6 +30,19 @@ def timeit(fn, *, min_time=0.5, min_runs=3, max_runs=50):
     return min(times)
 
 
+def time_interleaved(fns: dict, rounds: int = 4) -> dict:
+    """Best time of each of `fns` ({name: fn}, already warmed up), in seconds per call. Each
+    round calls every function once, in turn, so that a slow spell of a shared machine falls
+    on all of them alike and their ratios hold."""
+    best = {name: float("inf") for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+    return best
+
+
 def in_fresh_processes(script: Path, args: list[str], repeats: int) -> list[dict]:
     """Run `script --worker ARGS` `repeats` times, each in a new Python process; collect JSON."""
     out = []

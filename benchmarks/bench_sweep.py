@@ -1,19 +1,24 @@
-"""Batched sweeps against a loop of single runs: throughput in Mcell-steps/s.
+"""Batched sweeps against a loop of single runs and one large lattice: Mcell-steps/s.
 
 For batches of 16, 64 and 256 members (the bounded Turing model, ratio varying from 4 to 12,
-one shared paper start) on 64x64 and 128x128 lattices, this times
+one shared paper start) on 60x60 and 120x120 lattices, this times
 
-- `sweep`: the whole batch through `mj.sweep` (vmapped, chunked, sharded over the local
-  devices; descriptors off, so only the simulation and the transfer back are timed), and
+- `sweep`: the whole batch through `mj.sweep` with its defaults (on one CPU device: groups
+  of members in lanes, see morphojax/_lanes.py; descriptors off, so only the simulation and
+  the transfer back are timed),
+- `sweep 1x1`: the same sweep member by member (`vmap_size=1`, the path before lanes),
 - a loop of `mj.simulate`, once per member, one call after the other (one compiled program,
-  since parameters are traced arrays; blocked on at the end): what a user would write, and
+  since parameters are traced arrays; blocked on at the end): what a user would write,
 - a lean loop: one `jax.jit`-compiled single run (`run_status` of `Turing(r, s)`), called
-  once per member: the same kernel without `simulate`'s per-call checks,
+  once per member: the same kernel without `simulate`'s per-call checks, and
+- one large lattice: `mj.simulate` on 480x480 (as many cells as 64 members of 60x60), the
+  per-cell throughput a small-lattice sweep is measured against,
 
-each figure the median over several fresh processes (see _harness.py); cell-steps count
-members x cells x steps, the same work in both columns.
+all five interleaved round by round (`time_interleaved`: a slow spell of the shared
+machine falls on all of them alike), each figure the median over several fresh processes
+(see _harness.py); cell-steps count members x cells x steps, the same work in every column.
 
-    python benchmarks/bench_sweep.py [--repeats 3] [--sizes 64 128] [--batches 16 64 256]
+    python benchmarks/bench_sweep.py [--repeats 3] [--sizes 60 120] [--batches 16 64 256]
 """
 
 from __future__ import annotations
@@ -22,10 +27,11 @@ import argparse
 import json
 import sys
 
-from _harness import HERE, in_fresh_processes, machine, markdown_table, median, timeit
+from _harness import HERE, in_fresh_processes, machine, markdown_table, median, time_interleaved
 
 S, DT = 3.0, 0.008  # ratio 4..12 with s = 3 is stable at dt = 0.008 (limit 0.0104 at r = 12)
-WORK = 1.6e6  # cell-steps per member: 400 steps at 64x64, 100 steps at 128x128
+WORK = 1.8e6  # cell-steps per member: 500 steps at 60x60, 125 steps at 120x120
+LARGE = 480  # the large lattice's side
 
 
 def worker(n: int, batch: int, batch_size: int | None) -> dict:
@@ -40,9 +46,9 @@ def worker(n: int, batch: int, batch_size: int | None) -> dict:
     model = mj.Turing(4.0, S)
     state = mj.paper_state(jax.random.key(0), (n, n))
 
-    def batched():
+    def batched(vmap_size=None):
         return sweep(model, {"ratio": ratios}, state=state, steps=steps, dt=DT, batch_size=batch_size,
-                        describe_members=False).fields
+                     vmap_size=vmap_size, describe_members=False).fields
 
     members = [model.replace(ratio=float(r)) for r in ratios]
 
@@ -56,19 +62,26 @@ def worker(n: int, batch: int, batch_size: int | None) -> dict:
     def lean():
         return jax.block_until_ready([one(r) for r in rs])
 
-    batched(), loop(), lean()  # compile all three
-    t_batch = timeit(batched, min_time=0.0, min_runs=2)
-    t_loop = timeit(loop, min_time=0.0, min_runs=2)
-    t_lean = timeit(lean, min_time=0.0, min_runs=2)
+    big = mj.paper_state(jax.random.key(0), (LARGE, LARGE))
+    big_steps = max(10, int(WORK * 16 / LARGE**2))
+
+    def large():
+        return mj.simulate(model.replace(ratio=8.0), big, steps=big_steps, dt=DT).fields.block_until_ready()
+
+    fns = {"sweep": batched, "one": lambda: batched(1), "loop": loop, "lean": lean, "large": large}
+    for fn in fns.values():
+        fn()  # compile
+    t = time_interleaved(fns)
     work = batch * n * n * steps
-    return {"n": n, "batch": batch, "steps": steps, "sweep": work / t_batch / 1e6, "loop": work / t_loop / 1e6,
-            "lean": work / t_lean / 1e6, "devices": len(jax.devices()), "backend": jax.default_backend()}
+    cell_steps = {k: work for k in fns} | {"large": LARGE**2 * big_steps}
+    return {"n": n, "batch": batch, "steps": steps, **{k: cell_steps[k] / v / 1e6 for k, v in t.items()},
+            "devices": len(jax.devices()), "backend": jax.default_backend()}
 
 
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--worker", action="store_true")
-    p.add_argument("--sizes", type=int, nargs="*", default=[64, 128])
+    p.add_argument("--sizes", type=int, nargs="*", default=[60, 120])
     p.add_argument("--batches", type=int, nargs="*", default=[16, 64, 256])
     p.add_argument("--batch-size", type=int, default=None, help="sweep chunk size (default: automatic)")
     p.add_argument("--repeats", type=int, default=3)
@@ -83,16 +96,19 @@ def main():
     for n in args.sizes:
         for b in args.batches:
             res = in_fresh_processes(HERE / "bench_sweep.py", [*extra, str(n), str(b)], args.repeats)
-            sw, lp, ln = (median([r[k] for r in res]) for k in ("sweep", "loop", "lean"))
-            vs_loop = [r["sweep"] / r["loop"] for r in res]
-            vs_lean = [r["sweep"] / r["lean"] for r in res]
-            rows.append([f"{n}x{n}", b, res[0]["steps"], f"{sw:.0f}", f"{lp:.0f}", f"{ln:.0f}",
-                         f"{median(vs_loop):.1f}x (min {min(vs_loop):.1f}x)",
-                         f"{median(vs_lean):.1f}x (min {min(vs_lean):.1f}x)"])
+            sw, one, lp, ln, lg = (median([r[k] for r in res]) for k in ("sweep", "one", "loop", "lean", "large"))
+
+            def ratio(key):
+                x = [r["sweep"] / r[key] for r in res]
+                return f"{median(x):.1f}x (min {min(x):.1f}x)"
+
+            rows.append([f"{n}x{n}", b, res[0]["steps"], f"{sw:.0f}", f"{one:.0f}", f"{lp:.0f}", f"{ln:.0f}",
+                         f"{lg:.0f}", ratio("loop"), ratio("lean"), ratio("large")])
             print(f"{n} {b}: {res}", file=sys.stderr)
     print(f"Machine: {machine()}; medians over {args.repeats} fresh processes.\n")
-    print(markdown_table(["lattice", "members", "steps/member", "sweep", "loop of simulate", "lean jit loop",
-                          "sweep / simulate loop", "sweep / lean loop"], rows))
+    print(markdown_table(["lattice", "members", "steps/member", "sweep", "sweep 1x1", "loop of simulate",
+                          "lean jit loop", f"one {LARGE}x{LARGE}", "sweep / simulate loop", "sweep / lean loop",
+                          "sweep / large lattice"], rows))
     print("\nThroughputs in Mcell-steps/s (members x cells x steps per second).")
 
 

@@ -8,10 +8,11 @@ bounded); each chunk's batch axis is sharded over a `jax.sharding.Mesh` of devic
 (`devices=None`: all local devices), so the same call uses one CPU, 8 GPUs or a TPU slice.
 
 On GPUs, TPUs and several devices a chunk is one vmap. On a single CPU device the members
-of a chunk run one after another inside the program (`lax.map`, so each member's lattice
-stays in cache) and one thread per core runs chunks side by side: coarse-grained parallelism
-with no per-step hand-off, where a wide vmap would stream the whole chunk through memory at
-every step (figures in benchmarks/results/bench_sweep.md). A member that blows up is
+of a chunk run group after group inside the program (`lax.map`): a group of 8 members in
+the vector lanes of one array where the members allow it (`_lanes`), else one member at a
+time, so each group's lattices stay in cache; one thread per core runs chunks side by side:
+coarse-grained parallelism with no per-step hand-off, where a wide vmap would stream the
+whole chunk through memory at every step (figures in benchmarks/results/bench_sweep.md). A member that blows up is
 recorded (its first non-finite step), never raised.
 
 Several hosts. Call `jax.distributed.initialize()` in every process first (it finds the
@@ -36,6 +37,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._descriptors import relative_change
+from ._lanes import NOT_LOCATED, lane_count, lanes_apply, run_group
 from ._simulate import run_status
 from ._sweep_members import member_model
 
@@ -60,24 +62,39 @@ def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, 
 
 
 def _batch_program(model, growth, sources, state, keys, values, dt, *, state_axis, steps, tail, boundary, stencil,
-                   bounds, inner, out_sharding):
-    """A chunk of members: vmapped `inner` at a time (`lax.map` runs the sub-batches in sequence)."""
+                   bounds, inner, lanes, out_sharding):
+    """A chunk of members: (fields, size, bad step, overflow, change), each with a leading
+    member axis. With `lanes`, groups of `inner` members in lanes (`_lanes.run_group`), one
+    group after another; else vmapped `inner` at a time (`lax.map` runs the sub-batches in
+    sequence)."""
     _TRACES["batch"] += 1  # runs at trace time only
-
-    def one(state, key, values):
-        return _member_run(model, growth, sources, state, key, values, dt, steps=steps, tail=tail,
-                           boundary=boundary, stencil=stencil, bounds=bounds)
-
     size = len(next(iter(values.values())))
-    if inner >= size:
-        out = jax.vmap(one, in_axes=(state_axis, None if keys is None else 0, 0))(state, keys, values)
+    kw = dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds)
+    if lanes:
+        first = (lambda a: a) if state_axis is None else (lambda a: a[0])  # every start has one size and step
+
+        def group(x):
+            fields = state.fields if state_axis is None else x[0]
+            return run_group(model, fields, first(state.size), first(state.step), x[1], dt, **kw)
+
+        split = lambda a: a.reshape((size // inner, inner) + a.shape[1:])  # noqa: E731
+        xs = (None if state_axis is None else split(state.fields), jax.tree_util.tree_map(split, values))
+        out = jax.lax.map(group, xs)
+        out = tuple(a.reshape((size,) + a.shape[2:]) for a in out)
     else:
-        xs = (state if state_axis == 0 else None, keys, values)
+        def one(state, key, values):
+            final, bad, over, change = _member_run(model, growth, sources, state, key, values, dt, **kw)
+            return final.fields, final.size, bad, over, change
 
-        def each(x):
-            return one(state if state_axis is None else x[0], x[1], x[2])
+        if inner >= size:
+            out = jax.vmap(one, in_axes=(state_axis, None if keys is None else 0, 0))(state, keys, values)
+        else:
+            xs = (state if state_axis == 0 else None, keys, values)
 
-        out = jax.lax.map(each, xs, batch_size=None if inner == 1 else inner)
+            def each(x):
+                return one(state if state_axis is None else x[0], x[1], x[2])
+
+            out = jax.lax.map(each, xs, batch_size=None if inner == 1 else inner)
     if out_sharding is not None:  # keep every output split along the batch axis
         out = jax.tree_util.tree_map(lambda x: jax.lax.with_sharding_constraint(x, out_sharding), out)
     return out
@@ -123,14 +140,19 @@ def _workers(devices, n_members) -> int:
     return max(1, min(os.cpu_count() or 1, _MAX_WORKERS, n_members))
 
 
-def _inner(vmap_size, devices, chunk) -> int:
+def _layout(vmap_size, devices, chunk, lanes: int) -> tuple[int, bool]:
+    """(members advanced together by one step, whether they run in lanes). `lanes`: the
+    group size when the members can run in lanes (`_lanes.lanes_apply`), else 0."""
     if vmap_size is not None:
         if not isinstance(vmap_size, (int, np.integer)) or isinstance(vmap_size, bool) or vmap_size < 1:
             raise ValueError(f"sweep: vmap_size must be a positive integer or None (got {vmap_size!r})")
-        return min(int(vmap_size), chunk)
+        return min(int(vmap_size), chunk), False
     if len(devices) == 1 and devices[0].platform == "cpu":
-        return 1  # CPU: one member at a time stays in cache; the cores run chunks side by side
-    return chunk
+        # CPU: a group in lanes, or one member at a time, stays in cache; the cores run
+        # chunks side by side. Groups always hold `lanes` members, so that a member's bits
+        # do not depend on the chunking (nor on the number of processes)
+        return (lanes, True) if lanes else (1, False)
+    return chunk, False
 
 
 def _host_block(n, index, count):
@@ -153,7 +175,8 @@ class BatchRun:
     sharding: str  # the batch sharding (or the one device)
     devices: list  # the devices of this process that ran chunks
     chunk: int  # members per compiled chunk
-    inner: int  # members advanced together by one vmapped step
+    inner: int  # members advanced together by one step
+    lanes: bool  # the members of a group shared the step's vector lanes (`_lanes`)
     seconds: float  # wall time of the chunks (and the gather between hosts)
 
 
@@ -171,16 +194,20 @@ def run_batched(model, growth, sources, starts, member_keys, values, dt, *, step
     hosts = devices is None and jax.process_count() > 1  # split the members between processes
     lo, hi, per_host = _host_block(n, jax.process_index(), jax.process_count()) if hosts else (0, n, n)
     chunk = _chunk_size(batch_size, max(per_host, 1), int(np.prod(probe.fields.shape)), devs)
-    inner = _inner(vmap_size, devs, chunk)
+    group = lane_count(probe.fields.dtype) if lanes_apply(model, growth, sources, probe) else 0
+    inner, lanes = _layout(vmap_size, devs, chunk, group)
+    if lanes:  # whole groups (padded like the last chunk)
+        chunk = -(-chunk // inner) * inner
     t0 = time.perf_counter()
     host, sharding = _run_chunks(
         model, growth, sources, starts, member_keys, values, jnp.asarray(dt, probe.fields.dtype), devs, chunk, lo, hi,
-        dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds, inner=inner), progress)
+        dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds, inner=inner, lanes=lanes),
+        progress)
     if hosts:
         host = _gather_hosts(host, n, per_host)
     fields, size, bad, over, change, member_devices = host
     seconds = time.perf_counter() - t0
-    return BatchRun(fields, size, bad, over, change, member_devices, sharding, devs, chunk, inner, seconds)
+    return BatchRun(fields, size, bad, over, change, member_devices, sharding, devs, chunk, inner, lanes, seconds)
 
 
 def _run_chunks(model, growth, sources, starts, member_keys, values, dt, devs, chunk, lo, hi, static, progress):
@@ -213,9 +240,13 @@ def _run_chunks(model, growth, sources, starts, member_keys, values, dt, devs, c
         return _run_batch(*args, **kwargs), a, min(a + chunk, hi)
 
     def to_host(item):
-        (final, bad, over, change), a, b = item
-        arrays = (final.fields, final.size, bad, over, change)
-        return a, tuple(np.asarray(x)[: b - a] for x in arrays) + (_owners(final.fields, b - a),)
+        arrays, a, b = item
+        if static["lanes"] and (np.asarray(arrays[2])[: b - a] == NOT_LOCATED).any():
+            # a member went non-finite: the chunk again member by member, which finds the
+            # exact first bad step (as a lone run does)
+            args, kwargs = inputs(a)
+            arrays = _run_batch(*args, **(kwargs | dict(lanes=False, inner=1)))
+        return a, tuple(np.asarray(x)[: b - a] for x in arrays) + (_owners(arrays[0], b - a),)
 
     firsts = list(range(lo, hi, chunk))
     workers = min(_workers(devs, hi - lo), len(firsts))

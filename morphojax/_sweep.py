@@ -74,9 +74,12 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         devices: None (all local devices), a number of local devices, or a list of devices: the
             batch axis of every chunk is sharded over a 1D `Mesh` of them ("batch").
         vmap_size: members advanced together by one vmapped step; the rest of a chunk runs
-            sub-batch after sub-batch in the same program (`lax.map`). None: 1 on a single CPU
-            device (and one thread per core running chunks side by side), the whole chunk
-            otherwise. Results do not depend on it.
+            sub-batch after sub-batch in the same program (`lax.map`). None: the whole chunk
+            on accelerators and several devices; on a single CPU device, groups of 8 float32
+            members in the vector lanes of one array (4 float64; built-in models without
+            parameter maps, growth or sources), else one member at a time, with one thread per
+            core running chunks side by side. Results do not depend on it (lanes agree with a
+            lone run to float rounding; see `morphojax/_lanes.py`).
         key: a `jax.random` key or an int seed: member i uses fold_in(key, i) (see module docs),
             or `key` itself for every member with `keys="shared"`. Needed for per-member
             starts, growth and sources.
@@ -137,7 +140,7 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         "keys": keys, "seed": seed, "key_data": key_to_data(key), "shape": list(probe.shape),
         "capacity": list(probe.capacity) if probe.growable else None, "growable": probe.growable,
         "start_step": int(np.asarray(probe.step)), "start_time": float(np.asarray(probe.time)),
-        "initial": starts.kind, "batch_size": run.chunk, "vmap_size": run.inner,
+        "initial": starts.kind, "batch_size": run.chunk, "vmap_size": run.inner, "lanes": run.lanes,
         "devices": [str(d) for d in run.devices], "processes": jax.process_count(),
     }
     result = SweepResult(model=model, names=names, axes=axes, values=values, fields=run.fields, size=run.size,

@@ -63,10 +63,12 @@ def stencil_weights(stencil: str = "nine-point"):
     return [[0.0, 1.0, 0.0], [1.0, -4.0, 1.0], [0.0, 1.0, 0.0]]
 
 
-def pad(x, boundary: str):
-    """Add one ring of ghost cells to the last two axes of `x` (the whole array is the
-    lattice); `repad` writes the ghost cells of an active region inside a larger array."""
-    widths = [(0, 0)] * (x.ndim - 2) + [(1, 1), (1, 1)]
+def pad(x, boundary: str, lanes: bool = False):
+    """Add one ring of ghost cells to the rows and columns of `x`: its last two axes, or with
+    `lanes` the two before its last (a sweep's members in the last axis, see `_lanes`). The
+    whole array is the lattice; `repad` writes the ghost cells of an active region inside a
+    larger array."""
+    widths = [(0, 0)] * (x.ndim - 2 - lanes) + [(1, 1), (1, 1)] + [(0, 0)] * lanes
     return jnp.pad(x, widths, mode="wrap" if boundary == "wrap" else "edge")
 
 
@@ -108,16 +110,23 @@ def repad(p, x, size, boundary: str):
     return dus(p, padded_col(right), w + 1, axis=ax_c)
 
 
-def laplacian_padded(p, stencil: str = "nine-point"):
+def laplacian_padded(p, stencil: str = "nine-point", lanes: bool = False):
     """The stencil applied to the interior of a ghost-padded array `p` (..., rows + 2,
-    cols + 2): a Laplacian in cells^-2 for "nine-point" and "five-point"; for "moore" the
-    thesis's equal-weight sum over the eight neighbours, sum_j (u_j - u), which
-    approximates 3 x the Laplacian (edges give lap u, the diagonals 2 lap u)."""
-    c = p[..., 1:-1, 1:-1]
-    edges = p[..., :-2, 1:-1] + p[..., 2:, 1:-1] + p[..., 1:-1, :-2] + p[..., 1:-1, 2:]
+    cols + 2), or with `lanes` (..., rows + 2, cols + 2, members): a Laplacian in cells^-2
+    for "nine-point" and "five-point"; for "moore" the thesis's equal-weight sum over the
+    eight neighbours, sum_j (u_j - u), which approximates 3 x the Laplacian (edges give
+    lap u, the diagonals 2 lap u)."""
+    tail = (slice(None),) * lanes
+
+    def shifted(dr, dc):  # the interior moved by (dr, dc) cells
+        rows, cols = p.shape[-2 - lanes], p.shape[-1 - lanes]
+        return p[(Ellipsis, slice(1 + dr, rows - 1 + dr), slice(1 + dc, cols - 1 + dc)) + tail]
+
+    c = shifted(0, 0)
+    edges = shifted(-1, 0) + shifted(1, 0) + shifted(0, -1) + shifted(0, 1)
     if stencil == "five-point":
         return edges - 4.0 * c
-    corners = p[..., :-2, :-2] + p[..., :-2, 2:] + p[..., 2:, :-2] + p[..., 2:, 2:]
+    corners = shifted(-1, -1) + shifted(-1, 1) + shifted(1, -1) + shifted(1, 1)
     if stencil == "moore":
         return edges + corners - 8.0 * c
     return (4.0 * edges + corners - 20.0 * c) * (1.0 / 6.0)
