@@ -40,6 +40,7 @@ from ._animation import save_animation
 from ._palette import kmeans, photo_palette
 from ._explore import Explorer, SweepExplorer, explore, explore_sweep
 from ._render_hex import hex_image, render_hex
+from ._mesh_texture import texture_image
 from ._render_mesh import mesh_image, vertex_colours
 from .presets import PRESETS, leopard_row_weights, preset
 from ._descriptors import Descriptors, describe, radial_power_spectrum, relative_change
@@ -175,6 +176,7 @@ __all__ = [
     "STENCILS",
     "sweep",
     "SweepResult",
+    "texture_image",
     "thesis_state",
     "to_image",
     "to_jsonable",

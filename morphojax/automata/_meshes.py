@@ -98,22 +98,58 @@ def read_ply(path, colours: bool = False):
     return out + ((np.stack([v["r"], v["g"], v["b"]], 1) if coloured else None),)
 
 
-def write_obj(path, vertices, faces, colour=None, comment: str = "morphojax") -> Path:
+def write_obj(path, vertices, faces, colour=None, comment: str = "morphojax", *, uv=None, uv_faces=None,
+              texture=None) -> Path:
     """A Wavefront OBJ triangle mesh (text; indices are 1-based). With `colour` (as for
     `write_ply`) each vertex line carries its colour as `v x y z r g b` with r, g, b in
-    [0, 1], the vertex-colour extension that MeshLab, Blender and trimesh read."""
+    [0, 1], the vertex-colour extension that MeshLab, Blender and trimesh read.
+
+    With texture coordinates (`uv` (T, 2) and `uv_faces` (F, 3), as `Mesh` holds them) the
+    faces name their texture vertices (`f v/vt`); with a `texture` image as well (e.g.
+    `mj.texture_image(mesh, values)`), it is written beside as `{stem}_texture.png` with a material
+    `{stem}.mtl` that maps it (`map_Kd`). Every file is written atomically."""
+    from .._serialise import write_atomically
+
     path = Path(path)
     vertices = np.asarray(vertices, np.float32).reshape(-1, 3)
     faces = np.asarray(faces, np.int64).reshape(-1, 3)
     colours = _vertex_colours(colour, len(vertices))
-    with open(path, "w") as fh:
-        fh.write(f"# {comment}\n")
-        if colours is None:
-            np.savetxt(fh, vertices, fmt="v %.4f %.4f %.4f")
-        else:
-            np.savetxt(fh, np.hstack([vertices, colours / 255.0]), fmt="v %.4f %.4f %.4f %.4f %.4f %.4f")
-        np.savetxt(fh, faces + 1, fmt="f %d %d %d")
-    return path
+    if (uv is None) != (uv_faces is None):
+        raise ValueError("write_obj: give both uv and uv_faces (texture coordinates), or neither")
+    if texture is not None and uv is None:
+        raise ValueError("write_obj: a texture needs texture coordinates (uv= and uv_faces=)")
+    if uv is not None:
+        from .._mesh_texture import _check_layout
+
+        uv, uv_faces, _ = _check_layout(uv, uv_faces, faces)
+    material = path.with_suffix(".mtl")
+    if texture is not None:
+        image = path.with_name(f"{path.stem}_texture.png")
+        write_atomically(image, lambda tmp: texture.save(tmp, format="PNG"))
+
+        def write_material(tmp):
+            with open(tmp, "w") as fh:
+                fh.write(f"# {comment}\nnewmtl morphojax\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nmap_Kd {image.name}\n")
+
+        write_atomically(material, write_material)
+
+    def write(tmp):
+        with open(tmp, "w") as fh:
+            fh.write(f"# {comment}\n")
+            if texture is not None:
+                fh.write(f"mtllib {material.name}\nusemtl morphojax\n")
+            if colours is None:
+                np.savetxt(fh, vertices, fmt="v %.4f %.4f %.4f")
+            else:
+                np.savetxt(fh, np.hstack([vertices, colours / 255.0]), fmt="v %.4f %.4f %.4f %.4f %.4f %.4f")
+            if uv is None:
+                np.savetxt(fh, faces + 1, fmt="f %d %d %d")
+            else:
+                np.savetxt(fh, uv, fmt="vt %.6f %.6f")
+                corners = np.stack([faces + 1, uv_faces + 1], axis=-1).reshape(-1, 6)
+                np.savetxt(fh, corners, fmt="f %d/%d %d/%d %d/%d")
+
+    return write_atomically(path, write)
 
 
 def write_species_meshes(cells, k: int, stem, fmt: str = "ply") -> list[Path]:

@@ -47,6 +47,8 @@ def register(subparsers) -> None:
                    help="the picture's view direction in degrees")
     p.add_argument("--out", type=Path, required=True, help="output mesh: F.ply or F.obj")
     p.add_argument("--png", type=Path, default=None, help="picture (default: next to --out)")
+    p.add_argument("--texture-size", type=int, default=1024,
+                   help="side of the texture written with an .obj whose mesh has UVs (default 1024)")
     p.add_argument("--quiet", action="store_true", help="no summary on stdout")
     p.set_defaults(func=run)
 
@@ -57,7 +59,7 @@ def load_mesh(text: str, scale: float = 1.0) -> mj.Mesh:
     if scale != 1.0:
         if not (scale > 0 and math.isfinite(scale)):
             raise ValueError(f"--scale must be a positive number (got {scale})")
-        mesh = mj.Mesh(mesh.vertices * scale, mesh.faces, mesh.mass)
+        mesh = mj.Mesh(mesh.vertices * scale, mesh.faces, mesh.mass, uv=mesh.uv, uv_faces=mesh.uv_faces)
     return mesh
 
 
@@ -98,8 +100,17 @@ def run(args) -> int:
     values = final.array(species)
     colours = mj.vertex_colours(values, cmap=args.cmap)
     out.parent.mkdir(parents=True, exist_ok=True)
-    writer = mj.write_ply if out.suffix.lower() == ".ply" else mj.write_obj
-    writer(out, mesh.vertices, mesh.faces, colour=colours, comment=f"morphojax {args.model} on {Path(args.file).name}")
+    comment = f"morphojax {args.model} on {Path(args.file).name}"
+    written = [out]
+    if out.suffix.lower() == ".ply":
+        mj.write_ply(out, mesh.vertices, mesh.faces, colour=colours, comment=comment)
+    elif mesh.uv is None:
+        mj.write_obj(out, mesh.vertices, mesh.faces, colour=colours, comment=comment)
+    else:  # the mesh's own UV layout: a texture beside the OBJ (and its material)
+        texture = mj.texture_image(mesh, values, size=args.texture_size, cmap=args.cmap)
+        mj.write_obj(out, mesh.vertices, mesh.faces, colour=colours, comment=comment, uv=mesh.uv,
+                     uv_faces=mesh.uv_faces, texture=texture)
+        written += [out.with_suffix(".mtl"), out.with_name(f"{out.stem}_texture.png")]
     png = args.png if args.png is not None else out.with_suffix(".png")
     mj.mesh_image(mesh, values, cmap=args.cmap, view=tuple(args.view)).save(png)
     npz = out.with_suffix(".npz")
@@ -107,7 +118,8 @@ def run(args) -> int:
                           "seed": args.seed, "scale": args.scale})
     summary = {"mesh": str(args.file), "vertices": mesh.n_vertices, "model": args.model, "dt": dt,
                "max_stable_dt": limit, "steps": args.steps, "species": species,
-               "min": float(np.min(values)), "max": float(np.max(values)), "written": [str(out), str(png), str(npz)]}
-    report(summary, f"{args.model} on {mesh.n_vertices} vertices, {args.steps} steps at dt {dt:.4g}: wrote {out}, "
-                    f"{png}, {npz}", args.quiet)
+               "min": float(np.min(values)), "max": float(np.max(values)),
+               "written": [str(p) for p in (*written, png, npz)]}
+    report(summary, f"{args.model} on {mesh.n_vertices} vertices, {args.steps} steps at dt {dt:.4g}: wrote "
+                    f"{', '.join(str(p) for p in (*written, png, npz))}", args.quiet)
     return 0

@@ -211,6 +211,16 @@ def largest_eigenvalue(table, weights, inverse_mass) -> float:
     return min(SAFETY * lam, gershgorin)
 
 
+def weld(vertices, faces):
+    """(vertices, faces) with the vertices of equal position merged, in order of first use."""
+    vertices = np.asarray(vertices)
+    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return vertices[first[order]], rank[np.asarray(inverse).ravel()][np.asarray(faces)]
+
+
 # ---- the domain -------------------------------------------------------------------------------
 class Mesh(AbstractDomain):
     """A triangle mesh: species live on its vertices and diffuse by the cotangent
@@ -234,6 +244,11 @@ class Mesh(AbstractDomain):
             (dimensionless, default 1). Array leaves: they can be swept and differentiated
             (the spectral radius is the one of the values given here).
 
+        uv, uv_faces: texture coordinates as an OBJ file holds them, for textures
+            (`mj.texture_image`, `write_obj(..., texture=)`): (T, 2) texture vertices and
+            (F, 3) texture-vertex indices of each face's corners (a seam's vertex has one
+            position and one texture vertex per side). Not used by the simulation.
+
     The remaining keyword arguments (`neighbours`, `weights`, `directional`,
     `inverse_mass`, `rho`) are the built operator, passed back by a saved file; leave them
     out to build it.
@@ -252,11 +267,14 @@ class Mesh(AbstractDomain):
     directional: jnp.ndarray | None  # (V, K): weights of t t^T minus the isotropic ones, None if isotropic
     along: jnp.ndarray  # factor of the rates along the direction
     across: jnp.ndarray  # factor of the rates across it
+    uv: np.ndarray | None  # (T, 2) texture vertices, or None
+    uv_faces: np.ndarray | None  # (F, 3) texture vertices of each face's corners, or None
     mass: str = eqx.field(static=True)
     rho: float = eqx.field(static=True)
 
     def __init__(self, vertices, faces, mass: str = "voronoi", direction=None, along=1.0, across=1.0, *,
-                 neighbours=None, weights=None, directional=None, inverse_mass=None, rho=None):
+                 uv=None, uv_faces=None, neighbours=None, weights=None, directional=None, inverse_mass=None,
+                 rho=None):
         check_choice(mass, "Mesh.mass", MASSES)
         for name, value in (("along", along), ("across", across)):
             if not (np.isfinite(value) and value > 0):
@@ -298,6 +316,14 @@ class Mesh(AbstractDomain):
         self.across = jnp.asarray(across, jnp.asarray(w).dtype)
         self.mass = mass
         self.rho = float(rho)
+        if (uv is None) != (uv_faces is None):
+            raise ValueError("Mesh: give both uv and uv_faces (texture coordinates), or neither")
+        if uv is not None:
+            from .._mesh_texture import _check_layout
+
+            uv, uv_faces, _ = _check_layout(uv, uv_faces, self.faces)
+            uv, uv_faces = uv.astype(np.float32), uv_faces.astype(np.int32)
+        self.uv, self.uv_faces = uv, uv_faces
 
     # ---- the domain's interface ---------------------------------------------------------
     @property
@@ -394,7 +420,14 @@ class Mesh(AbstractDomain):
         loaded = trimesh.load(str(path), file_type=ext, force="mesh", process=True)
         if len(getattr(loaded, "faces", ())) == 0:
             raise ValueError(f"Mesh.from_file: {str(path)!r} holds no triangles")
-        return cls(np.asarray(loaded.vertices), np.asarray(loaded.faces), **options)
+        uv = getattr(getattr(loaded, "visual", None), "uv", None)
+        if uv is None or len(uv) != len(loaded.vertices):
+            return cls(np.asarray(loaded.vertices), np.asarray(loaded.faces), **options)
+        # trimesh gives a vertex per (position, texture vertex) pair, which would cut the
+        # surface along every UV seam: weld the positions, keep the texture vertices
+        vertices, faces = weld(np.asarray(loaded.vertices), np.asarray(loaded.faces))
+        solid = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+        return cls(vertices, faces[solid], uv=np.asarray(uv), uv_faces=np.asarray(loaded.faces)[solid], **options)
 
     @classmethod
     def icosphere(cls, subdivisions: int = 3, radius: float = 1.0, **options) -> "Mesh":

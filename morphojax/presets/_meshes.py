@@ -63,9 +63,9 @@ class MeshInitial(Initial):
 
 def seed_patches(mesh: Mesh, count: int = 12, radius: float = 4.0, seed: int = 0) -> tuple:
     """Indices of the vertices within `radius` (straight-line distance, mesh units) of
-    `count` vertices drawn with NumPy's generator `seed`."""
+    `count` vertices (every vertex of a smaller mesh) drawn with NumPy's generator `seed`."""
     v = np.asarray(mesh.vertices, np.float64)
-    centres = v[np.random.default_rng(seed).choice(len(v), count, replace=False)]
+    centres = v[np.random.default_rng(seed).choice(len(v), min(count, len(v)), replace=False)]
     near = ((v[:, None, :] - centres[None]) ** 2).sum(-1).min(1) <= radius ** 2
     return tuple(int(i) for i in np.flatnonzero(near))
 
