@@ -31,12 +31,12 @@ def worker(subdivisions: int, steps: int) -> dict:
 
     import morphojax as mj
     from mesh_oracle import gray_scott_run
-    from morphojax.presets._meshes import MeshInitial, seed_patches
+    from morphojax.presets._meshes import seed_patches
 
     radius = 1.0 / (EDGE * 2.0 ** (5 - subdivisions))
     mesh = mj.Mesh.icosphere(subdivisions, radius)
     n = mesh.n_vertices
-    state = MeshInitial("gray-scott", (n,), params=(0.02, seed_patches(mesh))).build(jax.random.key(0))
+    state = mj.gray_scott_state(jax.random.key(0), (n,), seeded=seed_patches(mesh))
     model = mj.GrayScott(FEED, KILL, DU, DV)
     run = lambda: jax.block_until_ready(mj.simulate(model, state, steps=steps, dt=DT, domain=mesh).fields)  # noqa: E731
     run()  # compile

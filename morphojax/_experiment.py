@@ -38,8 +38,10 @@ class Initial:
 
     kind: "paper" (A = 4, B ~ U[4, 5)), "thesis" (both ~ U[mean - dev, mean + dev), params
     (dev, mean)), "constant" (params: one value per species), "uniform" (params: a value or
-    (low, high) per species), "gray-scott" (params: (square, noise)).
-    shape: (rows, cols); capacity: room to grow, or None for a fixed lattice.
+    (low, high) per species), "gray-scott" (params: (square, noise) on a lattice; on a mesh
+    (noise, seeded vertex indices), see `gray_scott_state`).
+    shape: (rows, cols), or (vertices,) for a mesh; capacity: room to grow (lattices), or
+    None for a fixed lattice.
     """
 
     kind: str
@@ -62,6 +64,9 @@ class Initial:
             specs = [tuple(p) if isinstance(p, (list, tuple)) else p for p in self.params]
             return _initial.random_state(key, shape, *specs, names=self.names, capacity=cap)
         if self.kind == "gray-scott":
+            if len(shape) == 1:  # a mesh: (noise, the seeded vertices)
+                noise, seeded = (tuple(self.params) + (0.02, None)[len(self.params):])[:2]
+                return _initial.gray_scott_state(key, shape, noise=noise, seeded=seeded)
             square, noise = (tuple(self.params) + (0.2, 0.02)[len(self.params):])[:2]
             return _initial.gray_scott_state(key, shape, square=square, noise=noise, capacity=cap)
         raise ValueError(f"unknown initial kind {self.kind!r}; allowed: paper, thesis, constant, uniform, gray-scott")

@@ -4,6 +4,9 @@ The leopard paper (section 7.1) uses two kinds: A constant 4 with B uniform in [
 and a fully constant state (A = B = 4) where randomness comes later from localised
 production and cell division. The thesis uses a mean and a deviation per species
 (uniform in [mean - dev, mean + dev)).
+
+A shape is (rows, cols) for a lattice, or (vertices,) for a mesh (one value per vertex, in
+the mesh's vertex order); room to grow (`capacity`) exists on lattices only.
 """
 
 from __future__ import annotations
@@ -17,23 +20,29 @@ from ._checks import check_finite, check_range, default_float
 from ._state import State
 
 
-def _shape2(shape):
+def _spatial(shape, capacity=None) -> tuple:
+    """(rows, cols) or (vertices,), checked."""
     try:
-        rows, cols = (int(s) for s in shape)
+        out = tuple(int(s) for s in shape)
     except (TypeError, ValueError) as err:
-        raise ValueError(f"shape must be (rows, cols) (got {shape!r})") from err
-    if rows < 1 or cols < 1:
-        raise ValueError(f"shape must be at least (1, 1) (got {(rows, cols)})")
-    return rows, cols
+        raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})") from err
+    if len(out) not in (1, 2):
+        raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})")
+    if min(out) < 1:
+        raise ValueError(f"shape must be at least {(1,) * len(out)} (got {out})")
+    if capacity is not None and len(out) != 2:
+        raise ValueError(f"capacity (room to grow) needs a (rows, cols) lattice (got shape {out})")
+    return out
 
 
 def random_state(key, shape, *species, names=None, capacity=None) -> State:
     """A state with one entry per species: a constant, or a (low, high) uniform range.
 
-    `random_state(key, (100, 100), 4.0, (4.0, 5.0))` is the paper's A = 4, B ~ U[4, 5).
-    Each species draws from its own sub-key, so adding a species does not change the others.
+    `random_state(key, (100, 100), 4.0, (4.0, 5.0))` is the paper's A = 4, B ~ U[4, 5);
+    `shape=(vertices,)` gives one value per vertex of a mesh. Each species draws from its
+    own sub-key, so adding a species does not change the others.
     """
-    rows, cols = _shape2(shape)
+    shape = _spatial(shape, capacity)
     if not species:
         raise ValueError("random_state needs at least one species specification")
     dtype = default_float()
@@ -46,10 +55,10 @@ def random_state(key, shape, *species, names=None, capacity=None) -> State:
             check_finite(lo, f"species {i} low")
             check_finite(hi, f"species {i} high")
             check_range(hi, f"species {i} high", low=lo)
-            arrays.append(jax.random.uniform(jax.random.fold_in(key, i), (rows, cols), dtype, lo, hi))
+            arrays.append(jax.random.uniform(jax.random.fold_in(key, i), shape, dtype, lo, hi))
         else:
             check_finite(spec, f"species {i} value")
-            arrays.append(jnp.full((rows, cols), spec, dtype))
+            arrays.append(jnp.full(shape, spec, dtype))
     return State.from_arrays(arrays, capacity=capacity, names=names)
 
 
@@ -69,20 +78,37 @@ def thesis_state(key, shape, dev=2.0, mean=4.0, capacity=None) -> State:
                         capacity=capacity)
 
 
-def gray_scott_state(key, shape, square=0.2, noise=0.02, capacity=None) -> State:
+def gray_scott_state(key, shape, square=0.2, noise=0.02, capacity=None, *, seeded=None) -> State:
     """Pearson's start for Gray-Scott: u = 1, v = 0, a central square at (u, v) = (0.5, 0.25),
-    plus uniform noise of amplitude `noise`. `square` is the side as a fraction of the lattice."""
-    rows, cols = _shape2(shape)
+    plus uniform noise of amplitude `noise`. `square` is the side as a fraction of the lattice.
+
+    On a mesh (`shape=(vertices,)`), where the vertex order says nothing about position, the
+    perturbed patch is given instead: `seeded`, the indices of its vertices (the mesh
+    presets' `seed_patches(mesh)`)."""
+    shape = _spatial(shape, capacity)
     dtype = default_float()
-    u = jnp.ones((rows, cols), dtype)
-    v = jnp.zeros((rows, cols), dtype)
-    hr, hc = max(1, int(rows * square) // 2), max(1, int(cols * square) // 2)
-    r0, c0 = rows // 2, cols // 2
-    u = u.at[r0 - hr : r0 + hr, c0 - hc : c0 + hc].set(0.5)
-    v = v.at[r0 - hr : r0 + hr, c0 - hc : c0 + hc].set(0.25)
+    if len(shape) == 1:
+        if seeded is None:
+            raise ValueError("gray_scott_state on a mesh (shape=(vertices,)) needs seeded=: the indices of the "
+                             "vertices to perturb, e.g. morphojax.presets._meshes.seed_patches(mesh)")
+        seeded = jnp.asarray(seeded, jnp.int32).reshape(-1)
+        if seeded.size and (int(seeded.min()) < 0 or int(seeded.max()) >= shape[0]):
+            raise ValueError(f"seeded must hold vertex indices in [0, {shape[0] - 1}] "
+                             f"(got {int(seeded.min())}..{int(seeded.max())})")
+        patch = jnp.zeros(shape, bool).at[seeded].set(True)
+    else:
+        if seeded is not None:
+            raise ValueError("seeded= is for meshes (shape=(vertices,)); on a lattice the patch is the central "
+                             "square of side `square`")
+        rows, cols = shape
+        hr, hc = max(1, int(rows * square) // 2), max(1, int(cols * square) // 2)
+        r0, c0 = rows // 2, cols // 2
+        patch = jnp.zeros(shape, bool).at[r0 - hr : r0 + hr, c0 - hc : c0 + hc].set(True)
+    u = jnp.where(patch, 0.5, 1.0).astype(dtype)
+    v = jnp.where(patch, 0.25, 0.0).astype(dtype)
     ku, kv = jax.random.split(key)
-    u = jnp.clip(u + noise * jax.random.uniform(ku, (rows, cols), dtype, -1.0, 1.0), 0.0, 1.0)
-    v = jnp.clip(v + noise * jax.random.uniform(kv, (rows, cols), dtype, -1.0, 1.0), 0.0, 1.0)
+    u = jnp.clip(u + noise * jax.random.uniform(ku, shape, dtype, -1.0, 1.0), 0.0, 1.0)
+    v = jnp.clip(v + noise * jax.random.uniform(kv, shape, dtype, -1.0, 1.0), 0.0, 1.0)
     return State.from_arrays([u, v], capacity=capacity, names=("u", "v"))
 
 

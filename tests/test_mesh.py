@@ -177,6 +177,34 @@ def test_phase_with_mesh_serialises_and_resumes(tmp_path):
     resumed = mj.run_experiment(exp, seed=3, resume=ckpt)
     np.testing.assert_array_equal(np.asarray(resumed.state.fields), np.asarray(whole.state.fields))
     assert resumed.state.ndim == 1
+    # the start read back from the file is the same start (one value per vertex)
+    key = jax.random.key(3)
+    np.testing.assert_array_equal(np.asarray(loaded.initial.build(key).fields), np.asarray(exp.initial.build(key).fields))
+
+
+def test_initial_states_with_one_value_per_vertex():
+    from morphojax._experiment import Initial
+
+    n, key = 40, jax.random.key(1)
+    paper = Initial("paper", (n,)).build(key)
+    assert paper.shape == (n,) and paper.ndim == 1
+    a, b = paper.arrays()
+    assert (a == 4.0).all() and (b >= 4.0).all() and (b < 5.0).all()
+    # the same draws as a lattice of one row: the vertex order is the only layout
+    np.testing.assert_array_equal(np.asarray(paper.fields), np.asarray(mj.paper_state(key, (1, n)).fields)[:, 0])
+    assert Initial("uniform", (n,), params=((0.0, 1.0), 2.5)).build(key).fields.shape == (2, n)
+    seeded = (3, 7, 8)
+    u, v = Initial("gray-scott", (n,), params=(0.0, seeded)).build(key).arrays()
+    mask = np.isin(np.arange(n), seeded)
+    assert (u[mask] == 0.5).all() and (v[mask] == 0.25).all() and (u[~mask] == 1.0).all() and (v[~mask] == 0.0).all()
+    with pytest.raises(ValueError, match="needs seeded="):
+        mj.gray_scott_state(key, (n,))
+    with pytest.raises(ValueError, match="vertex indices"):
+        mj.gray_scott_state(key, (n,), seeded=[n])
+    with pytest.raises(ValueError, match="capacity"):
+        mj.paper_state(key, (n,), capacity=(50,))
+    with pytest.raises(ValueError, match=r"\(vertices,\) for a mesh"):
+        mj.paper_state(key, (2, 3, 4))
 
 
 @pytest.mark.parametrize("bad, match", [

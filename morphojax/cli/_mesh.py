@@ -65,14 +65,13 @@ def load_mesh(text: str, scale: float = 1.0) -> mj.Mesh:
 
 def mesh_state(model, mesh: mj.Mesh, key) -> mj.State:
     """The model's customary start with one value per vertex: Gray-Scott seeded on 12
-    patches (as the mesh presets), every other model its lattice start (`initial_state`)."""
-    from morphojax.presets._meshes import MeshInitial, seed_patches
+    patches (as the mesh presets), every other model its `initial_state`."""
+    from morphojax.presets._meshes import seed_patches
 
     n = mesh.n_vertices
     if isinstance(model, mj.GrayScott):
-        return MeshInitial("gray-scott", (n,), params=(0.02, seed_patches(mesh)), names=("u", "v")).build(key)
-    lattice = mj.initial_state(model, key, (1, n))  # one row of n cells, one per vertex
-    return mj.State(lattice.fields.reshape(lattice.n_species, n), names=lattice.names)
+        return mj.gray_scott_state(key, (n,), seeded=seed_patches(mesh))
+    return mj.initial_state(model, key, (n,))
 
 
 def run(args) -> int:

@@ -8,57 +8,21 @@ per unit time; the leopard paper's Fig. 4 Turing parameters) then give patterns 
 size in edges as in cells. Every time step is 80% of the mesh's explicit-Euler limit
 (`Mesh.max_stable_dt`) or the lattice preset's own dt, whichever is smaller.
 
-Initial states are one value per vertex (`MeshInitial`): each species uniform in a range
-("uniform", as `Initial`), or Pearson's start on a mesh ("gray-scott": u = 1, v = 0 except
-on seeded patches, where (u, v) = (0.5, 0.25), plus noise of the run's seed). The patches
+Initial states are one value per vertex (`Initial` with shape (vertices,)): each species
+uniform in a range ("uniform"), or Pearson's start on a mesh ("gray-scott": u = 1, v = 0
+except on seeded patches, where (u, v) = (0.5, 0.25), plus noise of the run's seed). The patches
 are part of the preset (discs of radius 4 around 12 vertices drawn once with NumPy seed 0),
 as Pearson's central square is part of the lattice preset.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .._checks import default_float
 from .._experiment import Experiment, Initial, Phase
-from .._state import State
 from ..domains import Mesh
 from ..models import GrayScott, Turing
 from ._registry import ExperimentPreset, register
-
-
-@dataclasses.dataclass(frozen=True)
-class MeshInitial(Initial):
-    """An initial state with one value per vertex: `shape` = (vertices,).
-
-    kind "uniform": params hold a value or a (low, high) range per species; kind
-    "gray-scott": params = (noise amplitude, indices of the seeded vertices).
-    """
-
-    def build(self, key) -> State:
-        (n,) = (int(s) for s in self.shape)
-        dtype = default_float()
-        if self.kind == "gray-scott":
-            noise, seeded = (tuple(self.params) + (0.02, ()))[:2]
-            ku, kv = jax.random.split(key)
-            mask = jnp.zeros((n,), bool).at[jnp.asarray(seeded, jnp.int32)].set(True)
-            u = jnp.where(mask, 0.5, 1.0) + noise * jax.random.uniform(ku, (n,), dtype, -1.0, 1.0)
-            v = jnp.where(mask, 0.25, 0.0) + noise * jax.random.uniform(kv, (n,), dtype, -1.0, 1.0)
-            return State.from_arrays([jnp.clip(u, 0.0, 1.0), jnp.clip(v, 0.0, 1.0)], names=self.names or ("u", "v"))
-        if self.kind == "uniform":
-            arrays = []
-            for i, spec in enumerate(self.params):
-                k = jax.random.fold_in(key, i)
-                if isinstance(spec, (tuple, list)):
-                    arrays.append(jax.random.uniform(k, (n,), dtype, float(spec[0]), float(spec[1])))
-                else:
-                    arrays.append(jnp.full((n,), float(spec), dtype))
-            return State.from_arrays(arrays, names=self.names)
-        raise ValueError(f"unknown mesh initial kind {self.kind!r}; allowed: uniform, gray-scott")
 
 
 def seed_patches(mesh: Mesh, count: int = 12, radius: float = 4.0, seed: int = 0) -> tuple:
@@ -93,7 +57,7 @@ def _gray_scott_mesh(name, surface, pattern):
         model = GrayScott(feed=feed, kill=kill, du=0.2097, dv=0.105)
         steps = 3000 if quick else 15000
         return Experiment(
-            name=name, initial=MeshInitial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)),
+            name=name, initial=Initial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)),
                                  names=("u", "v")),
             phases=(Phase(model, steps=steps, dt=_dt(mesh, model, 1.0), frames=4, name="static", domain=mesh),),
             description=f"Gray-Scott F={feed}, k={kill}, Du=0.2097, Dv=0.105 on a {surface} of {mesh.n_vertices} "
@@ -117,7 +81,7 @@ def _turing_capsule(quick):
     dt = _dt(mesh, model, 0.008)
     steps = int(round((30.0 if quick else 100.0) / dt))  # t = 100 as Fig. 4 (quick: 30)
     return Experiment(
-        name="mesh-turing-capsule", initial=MeshInitial("uniform", (mesh.n_vertices,), params=(4.0, (4.0, 5.0)),
+        name="mesh-turing-capsule", initial=Initial("uniform", (mesh.n_vertices,), params=(4.0, (4.0, 5.0)),
                                                         names=("a", "b")),
         phases=(Phase(model, steps=steps, dt=dt, frames=4, name="static", domain=mesh),),
         description=f"leopard paper Fig. 4 (r = 12, s = 3, lower B = 3) on a capsule of {mesh.n_vertices} vertices: "
@@ -140,7 +104,7 @@ def _rings_capsule(quick):
     model = GrayScott(feed=feed, kill=kill, du=0.2097, dv=0.105)
     return Experiment(
         name="mesh-gray-scott-rings-capsule",
-        initial=MeshInitial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)), names=("u", "v")),
+        initial=Initial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)), names=("u", "v")),
         phases=(Phase(model, steps=6000 if quick else 15000, dt=_dt(mesh, model, 1.0), frames=4, name="static",
                       domain=mesh),),
         description=f"Gray-Scott F={feed}, k={kill} on a capsule of {mesh.n_vertices} vertices with anisotropic "
