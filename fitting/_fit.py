@@ -428,7 +428,8 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         t0 = time.perf_counter()
         rec.stage = "intervals"
         inflate = best_loss / floor if floor > 0 and np.isfinite(best_loss) else 1.0
-        ivals, undetermined = interval_report(sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate)
+        ivals, undetermined = interval_report(sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate,
+                                              seed=seed, floor=floor)
         timings["intervals"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]

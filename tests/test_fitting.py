@@ -500,6 +500,25 @@ def test_laplace_intervals_known_answer():
     assert flat2.all()
 
 
+def test_likelihood_region_follows_the_loss_beyond_a_narrow_start():
+    """A quadratic loss of half-widths sqrt(delta) x (0.05, 0.2): the region, started from a
+    box far too small along the second axis (half-width 3 x 0.02), walks out to the whole
+    ellipse (three quarters of its half-widths at least, in six rounds of the walk), and
+    accepts no point outside it."""
+    from fitting._uncertainty import likelihood_region
+
+    scales = np.array([0.05, 0.2])
+    delta = 5.991
+
+    def losses_at(u):
+        return (((np.asarray(u) - 0.5) / scales) ** 2).sum(axis=1)
+
+    region, _ = likelihood_region(losses_at, [0.5, 0.5], np.array([0.02, 0.02]), delta, seed=1, n=400)
+    half = np.sqrt(delta) * scales
+    reach = np.abs(region - 0.5).max(axis=0)
+    assert (reach <= half + 1e-12).all() and (reach >= 0.75 * half).all()
+
+
 def test_fit_reports_intervals(small_fit):
     truth, _, result = small_fit
     for name, value in result.params.items():
