@@ -24,17 +24,17 @@ a perfect model would have.
 
 The loss of a pattern-forming model is rugged and its valleys curve (ratio traded against
 scale along a wavelength), so the curvature at the optimum alone still claims too much. The
-intervals therefore also take in the likelihood-ratio region (`likelihood_region`): points
-around the optimum (a Latin hypercube three Laplace sds wide, then a walk from the region's
-extreme points that follows a curved valley out of the box) whose loss is below a threshold: the best loss plus (1 + 1 / seeds) x
-inflation x chi2_d(95%), the 95% likelihood-ratio region of the synthetic likelihood above,
-or, if larger, the loss a true parameter gives at its 95th percentile: the noise floor (the
-mean loss of single simulations against the fit's mean) times 1 + 1.645 sqrt(2 / groups), a
-chi-square with one degree of freedom per group. The second is the test "would a sample of
-these parameters lie as close to the target?" (an ABC acceptance), which the likelihood-ratio
-region fails on a rugged loss whose best point sits in the target's noise: on the synthetic
-spots target the best loss was 8.2, below the 12.5 a sample lies from its parameters' mean
-on average (10 groups x (1 + 1 / 4 seeds)). Each
+intervals therefore also take in a region (`likelihood_region`): points around the optimum
+(a Latin hypercube three Laplace sds wide, then a walk from the region's extreme points that
+follows a curved valley out of the box) whose loss is below a threshold. The threshold is the
+best loss plus (1 + 1 / seeds) x inflation x chi2_d(95%), the 95% likelihood-ratio region of
+the synthetic likelihood above, or, if larger, the loss a true parameter gives at its 95th
+percentile: the noise floor (the mean loss of single simulations against the fit's mean)
+times 1 + 1.645 sqrt(2 / groups), a chi-square with one degree of freedom per group. The
+second asks "would a sample of these parameters lie as close to the target?" (an ABC
+acceptance); the likelihood-ratio threshold alone fails where the best point sits inside the
+target's noise: on the synthetic spots target the best loss was 8.2, below the 12.5 that a
+sample lies from its parameters' mean on average (10 groups x (1 + 1 / 4 seeds)). Each
 parameter's interval spans the Laplace interval and every accepted point: a projection of
 the joint region, so conservative.
 

@@ -6,7 +6,10 @@ shape and differ only in their parameter values, so a group of them is laid out 
 (species, rows, cols, members) with the member axis last, innermost in memory: every
 operation of the step (the stencil's shifted reads, the reaction, the clamp) then works on
 whole vectors of members, and each parameter is a (1, members) map that meets them lane by
-lane. Same step, same order of operations: each member's numbers are those of a lone run.
+lane. The step is the same (`make_step`); each member's numbers agree with a lone run's to
+float rounding, not bit for bit (XLA compiles a (1, members) parameter differently from a
+scalar one), and since a group always holds the same number of members, they do not depend
+on the chunking or on a member's place in its group.
 
 The layout applies where every member's step is pointwise in its parameters and free of
 randomness: a square lattice (the sweep's), a built-in model whose parameters are scalars or
@@ -32,8 +35,8 @@ from .domains import AbstractDomain, _stencils
 from .models import Composite, Reaction
 
 # Members per group: one vector register of the host CPU's widest common width (AVX2, 32
-# bytes), 8 float32 or 4 float64 members. Wider groups spill the step's temporaries out of
-# the cache (figures in benchmarks/results/bench_sweep.md).
+# bytes), 8 float32 or 4 float64 members; 16 and 32 measured slower (figures in
+# benchmarks/results/bench_sweep.md).
 VECTOR_BYTES = 32
 NOT_LOCATED = -2  # a member's `bad` when a group flagged it and the sweep must re-run it alone
 
@@ -149,4 +152,5 @@ def run_group(model, fields, size, step0, values, dt, *, steps, tail, boundary, 
         c, flagged = _advance(step, c, tail, flagged)
         change = jax.vmap(lambda a, b: relative_change(a, b, xp=jnp), in_axes=(-1, -1))(mid, domain.interior(c.p))
     final = jnp.moveaxis(domain.interior(c.p), -1, 0)
-    return final, jnp.broadcast_to(size, (members, 2)), jnp.where(flagged, NOT_LOCATED, -1), jnp.zeros(members, bool), change
+    bad = jnp.where(flagged, NOT_LOCATED, -1)
+    return final, jnp.broadcast_to(size, (members, 2)), bad, jnp.zeros(members, bool), change
