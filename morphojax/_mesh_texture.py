@@ -42,6 +42,8 @@ def bake_values(uv, uv_faces, faces, values, size: int = 1024):
 
     Returns (image, covered): the (size, size) values and where a face covers the texel.
     Where faces overlap in UV space, the later face wins."""
+    if not isinstance(size, (int, np.integer)) or isinstance(size, bool):
+        raise ValueError(f"size must be an integer number of texels (got {size!r})")
     check_range(size, "size", low=2, high=16384)
     uv, uv_faces, faces = _check_layout(uv, uv_faces, faces)
     values = np.asarray(values, np.float64).ravel()
