@@ -108,7 +108,8 @@ def undetermined_mask(low_u, high_u, flat_mask, span: float = 0.5):
     return np.asarray(flat_mask) | ((np.asarray(high_u) - np.asarray(low_u)) > span)
 
 
-def likelihood_region(losses_at, u_star, sd_u, delta: float, seed: int = 0, n: int | None = None):
+def likelihood_region(losses_at, u_star, sd_u, delta: float, seed: int = 0, n: int | None = None,
+                      star_loss: float | None = None):
     """Unit points of the 95% region around u*: those whose loss is within `delta` of the
     best loss seen. First a Latin hypercube of `n` points in a box of half-width 3 sd (at
     least 0.03, at most 0.5 of the bounds); then, for up to `REGION_WALKS` rounds, a walk
@@ -116,8 +117,8 @@ def likelihood_region(losses_at, u_star, sd_u, delta: float, seed: int = 0, n: i
     quarter of the region's span once that is wider) from each accepted point that is
     extreme along some axis and not yet at its bound, which follows a curved valley out of
     the box. Stops when a round no longer widens the region, or it spans the bounds.
-    `losses_at(unit_points)` gives the fit's loss at each point. Returns the accepted points
-    (u* first) and every loss."""
+    `losses_at(unit_points)` gives the fit's loss at each point (`star_loss`: the loss at u*,
+    when the caller has it). Returns the accepted points (u* first) and every loss."""
     u_star = np.asarray(u_star, np.float64)
     d = len(u_star)
     n = REGION_POINTS * d if n is None else int(n)
@@ -126,7 +127,10 @@ def likelihood_region(losses_at, u_star, sd_u, delta: float, seed: int = 0, n: i
     cells = np.stack([rng.permutation(n) for _ in range(d)], axis=1)
     box = np.clip(u_star + (2.0 * (cells + rng.uniform(size=(n, d))) / n - 1.0) * width, 0.0, 1.0)
     points = np.concatenate([u_star[None], box])
-    losses = np.asarray(losses_at(points), np.float64)
+    if star_loss is None:
+        losses = np.asarray(losses_at(points), np.float64)
+    else:
+        losses = np.concatenate([[float(star_loss)], np.asarray(losses_at(box), np.float64)])
 
     def accepted():
         ok = np.isfinite(losses) & (losses <= np.nanmin(losses) + delta)
@@ -164,8 +168,8 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     if not np.isfinite(vecs).all():
         return {n: (float("nan"), float("nan")) for n in space.names}, list(space.names)
     J = (vecs[:d] - vecs[d:]).T / (2 * h)
-    scale = (1.0 + 1.0 / len(keys)) * max(float(inflate), 1.0)
     var = group_variances(tstats, cfg, len(keys)) * max(float(inflate), 1.0)
+    scale = float(var[0])  # every component's variance: the loss in units of -2 log L
     low, high, sd, flat = laplace_intervals(J, u_star, var)
     target = np.asarray(stats_vector(tstats, cfg, noise), np.float64)
 
@@ -183,7 +187,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     sample_q95 = float(floor) * (1.0 + 1.645 * np.sqrt(2.0 / groups)) if np.isfinite(floor) else 0.0
     best = float(losses_at(u_star[None])[0])
     delta = max(scale * CHI2_95[min(d, len(CHI2_95)) - 1], sample_q95 - best)
-    region, _ = likelihood_region(losses_at, u_star, sd, delta, seed)
+    region, _ = likelihood_region(losses_at, u_star, sd, delta, seed, star_loss=best)
     low, high = np.minimum(low, region.min(axis=0)), np.maximum(high, region.max(axis=0))
     und = undetermined_mask(low, high, flat)
     out = {}

@@ -18,22 +18,10 @@ import numpy as np
 from PIL import Image
 
 from ._checks import check_range
+from .domains._mesh import check_uv_layout
 from ._render_mesh import vertex_colours
 
 BACKGROUND = (128, 128, 128)  # texels no face covers (after bleeding)
-
-
-def _check_layout(uv, uv_faces, faces):
-    uv = np.asarray(uv, np.float64)
-    uv_faces = np.asarray(uv_faces, np.int64)
-    faces = np.asarray(faces, np.int64)
-    if uv.ndim != 2 or uv.shape[1] != 2:
-        raise ValueError(f"uv must have shape (texture vertices, 2) (got {uv.shape})")
-    if uv_faces.shape != faces.shape:
-        raise ValueError(f"uv_faces must have the faces' shape {faces.shape} (got {uv_faces.shape})")
-    if uv_faces.size and (uv_faces.min() < 0 or uv_faces.max() >= len(uv)):
-        raise ValueError(f"uv_faces must index the {len(uv)} texture vertices (got {uv_faces.min()}..{uv_faces.max()})")
-    return uv, uv_faces, faces
 
 
 def bake_values(uv, uv_faces, faces, values, size: int = 1024):
@@ -45,7 +33,7 @@ def bake_values(uv, uv_faces, faces, values, size: int = 1024):
     if not isinstance(size, (int, np.integer)) or isinstance(size, bool):
         raise ValueError(f"size must be an integer number of texels (got {size!r})")
     check_range(size, "size", low=2, high=16384)
-    uv, uv_faces, faces = _check_layout(uv, uv_faces, faces)
+    uv, uv_faces, faces = check_uv_layout(uv, uv_faces, faces)
     values = np.asarray(values, np.float64).ravel()
     if faces.size and faces.max() >= len(values):
         raise ValueError(f"values needs one number per vertex (got {len(values)} for vertex {faces.max()})")

@@ -119,9 +119,9 @@ def write_obj(path, vertices, faces, colour=None, comment: str = "morphojax", *,
     if texture is not None and uv is None:
         raise ValueError("write_obj: a texture needs texture coordinates (uv= and uv_faces=)")
     if uv is not None:
-        from .._mesh_texture import _check_layout
+        from ..domains._mesh import check_uv_layout
 
-        uv, uv_faces, _ = _check_layout(uv, uv_faces, faces)
+        uv, uv_faces, _ = check_uv_layout(uv, uv_faces, faces)
     material = path.with_suffix(".mtl")
     if texture is not None:
         image = path.with_name(f"{path.stem}_texture.png")

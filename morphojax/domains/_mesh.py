@@ -211,6 +211,21 @@ def largest_eigenvalue(table, weights, inverse_mass) -> float:
     return min(SAFETY * lam, gershgorin)
 
 
+def check_uv_layout(uv, uv_faces, faces):
+    """(uv, uv_faces, faces) as float64/int64 arrays, checked: (T, 2) texture vertices and
+    one texture vertex per face corner."""
+    uv = np.asarray(uv, np.float64)
+    uv_faces = np.asarray(uv_faces, np.int64)
+    faces = np.asarray(faces, np.int64)
+    if uv.ndim != 2 or uv.shape[1] != 2:
+        raise ValueError(f"uv must have shape (texture vertices, 2) (got {uv.shape})")
+    if uv_faces.shape != faces.shape:
+        raise ValueError(f"uv_faces must have the faces' shape {faces.shape} (got {uv_faces.shape})")
+    if uv_faces.size and (uv_faces.min() < 0 or uv_faces.max() >= len(uv)):
+        raise ValueError(f"uv_faces must index the {len(uv)} texture vertices (got {uv_faces.min()}..{uv_faces.max()})")
+    return uv, uv_faces, faces
+
+
 def weld(vertices, faces):
     """(vertices, faces) with the vertices of equal position merged, in order of first use."""
     vertices = np.asarray(vertices)
@@ -319,9 +334,7 @@ class Mesh(AbstractDomain):
         if (uv is None) != (uv_faces is None):
             raise ValueError("Mesh: give both uv and uv_faces (texture coordinates), or neither")
         if uv is not None:
-            from .._mesh_texture import _check_layout
-
-            uv, uv_faces, _ = _check_layout(uv, uv_faces, self.faces)
+            uv, uv_faces, _ = check_uv_layout(uv, uv_faces, self.faces)
             uv, uv_faces = uv.astype(np.float32), uv_faces.astype(np.int32)
         self.uv, self.uv_faces = uv, uv_faces
 
