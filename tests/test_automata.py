@@ -498,6 +498,33 @@ def test_presets_quick_and_deterministic(tmp_path):
     assert g["glider_moved_diagonally"]
 
 
+def test_paper002_series_presets(tmp_path):
+    """Fig. 7: a weaker inhibitor lets species 0 take most of the volume and push species 1
+    away (section 4.3: 70% at w_0,inh = -0.15, species 1 back to 42.5% at -0.18). Fig. 11:
+    with one start, a radius enters the automaton only through the cells its disc covers,
+    so eps_0 is one value per neighbourhood (the step response) while WVD_0 moves
+    continuously over the paper's -70 to 70."""
+    from morphojax.presets import AUTOMATON_PRESETS as PRESETS
+
+    fig7 = PRESETS["dur-fig7"].run(seed=0, quick=True, out=tmp_path / "f7.png")
+    share = {r["w0_inh"]: r["volume_fractions"] for r in fig7["runs"]}
+    assert all(r["converged"] for r in fig7["runs"])
+    assert share[-0.15][0] > 0.6 and share[-0.15][0] > share[-0.2][0] > share[-0.3][0]
+    assert share[-0.18][1] > share[-0.15][1] + 0.05
+    fig11 = PRESETS["dur-fig11"].run(seed=0, quick=True, out=tmp_path / "f11.png")
+    with np.load(tmp_path / "f11.npz") as data:
+        eps, wvd, counts = data["order_parameter"][:, 0], data["weighted_volume_difference_0"], data["neighbour_counts_0"]
+        meta = json.loads(str(data["metadata"]))
+    assert meta["seeded"] and len(eps) == fig11["runs"] == 91
+    assert wvd.min() < -65 and wvd.max() > 65 and np.all(np.diff(wvd) > 0)
+    classes = {tuple(c) for c in counts}
+    assert len(classes) == fig11["distinct_neighbourhoods"] >= 5
+    for c in classes:  # one order parameter per neighbourhood
+        same = np.all(counts == c, axis=1)
+        assert np.ptp(eps[same]) == 0.0
+    assert len(np.unique(eps)) >= 3  # and the steps differ
+
+
 def test_ca_command_3d(tmp_path, capsys):
     from morphojax.cli._ca import register
 

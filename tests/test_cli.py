@@ -72,6 +72,25 @@ def test_run_writes_png_and_npz_and_is_deterministic(tmp_path, capsys):
     np.testing.assert_array_equal(api.state.array("b"), a1["species_b"])
 
 
+def test_a_figure_of_several_runs_reports_each_runs_pattern(tmp_path, capsys):
+    """`frog-interpolation` (leopard paper Fig. 22): one montage, one file per member, and
+    per member the pattern, spots and holes of its final shown species, as read back from
+    that member's file."""
+    out = tmp_path / "fig22.png"
+    assert main(["run", "frog-interpolation", "--quick", "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert out.exists() and summary["members"] == ["frog", "frog-nearest", "frog-bilinear", "frog-bicubic"]
+    finals = {}
+    for d in summary["descriptors"]:
+        arrays, meta = _arrays(tmp_path / f"fig22_{d['member']}.npz")
+        finals[d["member"]] = arrays["species_a"]
+        again = mj.describe(arrays["species_a"], wrap=False)
+        assert d["size"] == [80, 40] and (d["spots"], d["holes"], d["pattern"]) == (again.spots, again.holes, again.pattern)
+        method = d["member"].partition("-")[2] or "division"
+        assert meta["experiment"]["phases"][1]["growth"]["method"] == method
+    assert not np.allclose(finals["frog"], finals["frog-nearest"])
+
+
 def test_frames_and_resume(tmp_path):
     out = tmp_path / "sp.png"
     assert main(["run", "fig4-r12-lb", "--quick", "--frames", "--checkpoint-every", "1000", "--out", str(out),

@@ -140,6 +140,19 @@ def test_quick_presets(name):
     assert img.size == (size[1], size[0])
 
 
+def test_leopard_leg_rosettes_open_with_longer_development():
+    """Fig. 20: the longer the development phase, the more the spots of B open into
+    rosettes (dark centres enclosed by a spot: holes besides the background); at the
+    shortest the spots stay solid. The quick run scales the paper's 10,000 and 5,000."""
+    holes, sizes = {}, {}
+    for n in (10000, 5000):
+        result = mj.run_experiment(preset(f"leopard-development-{n}", quick=True), seed=0)
+        holes[n] = describe(result.state.array("b"), wrap=False).holes
+        sizes[n] = result.state.shape
+    assert sizes[10000][0] > sizes[5000][0]
+    assert holes[5000] == 1 and holes[10000] >= 3
+
+
 def test_every_preset_builds():
     for name, p in PRESETS.items():
         if p.members:

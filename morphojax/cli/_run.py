@@ -216,11 +216,12 @@ def _slug(text: str) -> str:
 def _run_figure(item, args, out: Path):
     """A figure of several experiments: one row per member; its columns are the member's
     snapshots (`item.snapshots`) or, otherwise, one tile per member, `len(col_labels)` to a row."""
-    rows = []
+    rows, described = [], []
     args.frames = True if item.snapshots else args.frames
     for member in item.members:
         exp = mj.PRESETS[member].experiment(args.quick)
         result = _run_one(exp, args, out.with_name(f"{out.stem}_{member}.npz"))
+        described.append({"member": member, "size": list(result.state.shape), **_descriptors(result)})
         shots = [s for _, s in result.frames if _can_show(s, exp)] if item.snapshots else []
         rows.append([mj.render_experiment(s, exp, scale=args.scale) for s in shots]
                     or [mj.render_experiment(result.state, exp, scale=args.scale)])
@@ -231,9 +232,21 @@ def _run_figure(item, args, out: Path):
     row_labels = item.row_labels or [m.split("-")[-1] for m in item.members]
     mj.montage(images, ncols, row_labels=list(row_labels), col_labels=list(item.col_labels or []) or None,
                title=f"{item.name}: {item.figure}").save(out)
-    report({"preset": item.name, "written": [str(out)], "members": list(item.members)},
-           f"{item.name}: {len(item.members)} runs; wrote {out}", args.quiet)
+    report({"preset": item.name, "written": [str(out)], "members": list(item.members), "descriptors": described},
+           f"{item.name}: {len(item.members)} runs; wrote {out}; "
+           + ", ".join(f"{d['member']} {d['pattern']} ({d['spots']} spots, {d['holes']} holes)" for d in described),
+           args.quiet)
     return 0
+
+
+def _descriptors(result) -> dict:
+    """The final pattern of the shown species (B for the melanin texture), as JSON numbers."""
+    exp = result.experiment
+    shown = result.state.array("b" if exp.show == "melanin" else exp.show)
+    d = mj.describe(shown, wrap=exp.phases[-1].boundary == "wrap")
+    return {"pattern": d.pattern, "spots": d.spots, "holes": d.holes,
+            "wavelength": None if d.wavelength != d.wavelength else round(float(d.wavelength), 2),
+            "dark_fraction": round(float(d.dark_fraction), 4)}
 
 
 # ---- resume and render -----------------------------------------------------------------------

@@ -21,7 +21,7 @@ from PIL import Image
 import morphojax as mj
 from .._serialise import write_npz
 from ._automaton_outputs import (automaton_stats, frames_outputs, line_chart, run_automaton, save_cells_npz,
-                                 timed_run)
+                                 timed_run, xy_chart)
 from ._registry import AutomatonPreset, register, registered
 
 
@@ -157,6 +157,113 @@ def _dur_fig9(seed, quick, out, frames):
     files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata))]
     return {"steps": steps_run, "lattice": [size] * 3, "order_parameter_0_final": {k: round(v[-1], 4) for k, v in series.items()},
             "seconds_run": round(seconds, 3), "files": files}
+
+
+FIG7_W0 = (-0.15, -0.18, -0.20, -0.25, -0.30)  # the text names -0.15 and -0.18; the rest span Fig. 9's range
+
+
+@_automaton("dur-fig7", "3D, L = 100, K = 2, w_0,inh from -0.15 to -0.30 (identical starts), run to convergence, "
+            "with each species' share of the volume", "paper 002 Fig. 7")
+def _dur_fig7(seed, quick, out, frames):
+    size = 40 if quick else 100
+    cells0 = mj.random_cells(jax.random.key(seed), (size,) * 3, 2)
+    runs, finals = [], []
+    t0 = time.perf_counter()
+    for w0 in FIG7_W0:
+        ca = mj.YoungCA([(3.2, 6.0, 1.0, w0), DUR_K2], denominator=100)  # one compiled run for the series
+        result = ca.run(cells0, 100, stop_at_convergence=True)
+        finals.append(np.asarray(result.cells))
+        runs.append({"w0_inh": w0, "steps": int(result.steps), "converged": bool(result.converged),
+                     **automaton_stats(result.cells, 2)})
+    seconds = time.perf_counter() - t0
+    labels = [f"w0 = {r['w0_inh']:g}: {100 * r['volume_fractions'][0]:.1f}% / {100 * r['volume_fractions'][1]:.1f}%"
+              for r in runs]
+    mj.montage([mj.cells_image(c[size // 2], 2, max(1, 200 // size)) for c in finals], len(finals),
+               col_labels=labels, title=f"L = {size}, K = 2, middle slices; species 0 / species 1 volume").save(out)
+    metadata = {"automaton": "YoungCA", "species_1": DUR_K2, "species_0": {"r_act": 3.2, "r_inh": 6.0, "w_act": 1.0},
+                "w0_inh": list(FIG7_W0), "lattice": [size] * 3, "seed": seed, "initial": {"p": None}, "runs": runs}
+    files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata))]
+    return {"lattice": [size] * 3, "runs": runs, "seconds_run": round(seconds, 3), "files": files}
+
+
+# ---- paper 002 section 4.5: the order parameter against the weighted volume difference ---
+WVD_STEPS = 50  # "after 50 iterations"
+WVD_SPECIES = (3.0, 6.0, 1.0, -0.2)  # r_act, r_inh, w_act, w_inh of the species held fixed
+
+
+def _wvd_series(models, cells_for, steps):
+    """Each model run `steps` updates from `cells_for(i)`: the order parameters of its
+    species, shape (len(models), K), and the final cells of each run."""
+    eps, finals = [], []
+    for i, ca in enumerate(models):
+        cells = ca.run(cells_for(i), steps).cells
+        eps.append(np.asarray(mj.order_parameter(cells, ca.n_species))[:ca.n_species])
+        finals.append(np.asarray(cells))
+    return np.array(eps), finals
+
+
+def _wvd_figure(name, figure, vary, values, k, seeded, description):
+    """A paper 002 section 4.5 preset: the first species' `vary` ("r_act" or "w_act") takes
+    `values` (the full series; `quick` takes every tenth), the other species keep
+    `WVD_SPECIES`, every run lasts `WVD_STEPS` updates on a 30^3 lattice (20^3 quick) from
+    one start (`seeded`) or a different start per value; the picture plots eps_j of every
+    species against WVD_0 and, for a radius series, shows one run per neighbourhood (the
+    radius enters only through the cells it covers)."""
+
+    def runner(seed, quick, out, frames):
+        series = np.asarray(values[::10] if quick else values, float)
+        size = 20 if quick else 30
+        fixed = WVD_SPECIES
+        rows = [(v, 6.0, 1.0, -0.2) if vary == "r_act" else (3.0, 6.0, v, -0.2) for v in series]
+        # one denominator for the whole series, so runs of one neighbourhood share a compiled loop
+        models = [mj.YoungCA([row, *[fixed] * (k - 1)], denominator=1000) for row in rows]
+        key = jax.random.key(seed)
+        start = mj.random_cells(key, (size,) * 3, k)
+        cells_for = (lambda i: start) if seeded else (
+            lambda i: mj.random_cells(jax.random.fold_in(key, i), (size,) * 3, k))
+        t0 = time.perf_counter()
+        eps, finals = _wvd_series(models, cells_for, WVD_STEPS)
+        seconds = time.perf_counter() - t0
+        wvd0 = np.array([float(mj.weighted_volume_difference(ca)[0]) for ca in models])
+        neighbourhood = [ca.neighbour_counts(3)[0].tolist() for ca in models]  # species 0's (disc, ring) cells
+        chart = xy_chart({f"eps_{j}": (wvd0, eps[:, j]) for j in range(k)},
+                         title=f"{figure}: eps vs WVD_0, L = {size}, K = {k}, {WVD_STEPS} updates",
+                         x_label=f"WVD_0 from {wvd0.min():.0f} to {wvd0.max():.0f}", dots=True)
+        # one picture per distinct neighbourhood of species 0 (each step of a radius series)
+        firsts = sorted({tuple(nb): i for i, nb in reversed(list(enumerate(neighbourhood)))}.values())
+        shown = firsts if vary == "r_act" and len(firsts) <= 12 else []
+        canvas = chart
+        if shown:
+            tiles = mj.montage([mj.cells_image(finals[i][size // 2], k, max(1, 80 // size)) for i in shown],
+                               len(shown), col_labels=[f"{wvd0[i]:.0f}" for i in shown])
+            canvas = Image.new("RGB", (max(chart.width, tiles.width), chart.height + tiles.height), "white")
+            canvas.paste(chart, (0, 0))
+            canvas.paste(tiles, (0, chart.height))
+        canvas.save(out)
+        metadata = {"automaton": "YoungCA", "vary": f"species 0 {vary}", "values": series.tolist(),
+                    "fixed_species": fixed, "k": k, "lattice": [size] * 3, "seed": seed, "seeded": seeded,
+                    "initial": {"p": None}, "steps": WVD_STEPS}
+        files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata, order_parameter=eps,
+                                              weighted_volume_difference_0=wvd0,
+                                              neighbour_counts_0=np.array(neighbourhood)))]
+        levels = len({tuple(np.round(e, 6)) for e in eps})
+        return {"lattice": [size] * 3, "runs": len(models), "distinct_neighbourhoods": len(firsts),
+                "distinct_order_parameters": levels, "wvd0_range": [round(wvd0.min(), 2), round(wvd0.max(), 2)],
+                "seconds_run": round(seconds, 3), "files": files}
+
+    register(AutomatonPreset(name, description, figure, runner))
+
+
+FIG10_R = np.round(np.arange(2800, 3701) / 1000, 3)  # R_0,act from 2.8 to 3.7 in steps of 0.001
+FIG12_W = np.round(np.arange(750, 2051) / 1000, 3)  # w_0,act from 0.75 to 2.05 (step not given: 0.001)
+_wvd_figure("dur-fig10", "paper 002 Fig. 10", "r_act", FIG10_R, 1, False,
+            "eps_0 against WVD_0, K = 1, R_0,act from 2.8 to 3.7 (901 runs), a different random start per run")
+_wvd_figure("dur-fig11", "paper 002 Fig. 11", "r_act", FIG10_R, 1, True,
+            "eps_0 against WVD_0, K = 1, R_0,act from 2.8 to 3.7, one start: a step per neighbourhood")
+_wvd_figure("dur-fig12", "paper 002 Fig. 12", "w_act", FIG12_W, 1, True,
+            "eps_0 against WVD_0, K = 1, R_0,act = 3, w_0,act from 0.75 to 2.05, one start")
+_wvd_figure("dur-fig13", "paper 002 Fig. 13", "r_act", FIG10_R, 3, True,
+            "eps_0, eps_1, eps_2 against WVD_0, K = 3 identical species but R_0,act from 2.8 to 3.7, one start")
 
 
 # ---- life-like rules ---------------------------------------------------------------------

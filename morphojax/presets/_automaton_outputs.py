@@ -124,24 +124,40 @@ def run_life_like(life, shape, *, p=None, steps: int, stop: bool, seed: int, out
 def line_chart(series: dict, width: int = 480, height: int = 300, title: str = "", ylim=(0.0, 1.0)) -> Image.Image:
     """A minimal line chart (pillow only): one polyline per labelled series over its index,
     in the species colours of the automata pictures."""
+    n = max(len(v) for v in series.values())
+    return xy_chart({label: (np.arange(len(v)), v) for label, v in series.items()}, width, height, title, ylim,
+                    x_label=f"iteration 0 .. {n - 1}")
+
+
+def xy_chart(series: dict, width: int = 480, height: int = 300, title: str = "", ylim=(0.0, 1.0), *,
+             x_label: str = "", dots: bool = False) -> Image.Image:
+    """A minimal chart (pillow only): `series` maps a label to its (x, y) values, drawn as
+    a polyline (or, with `dots`, one dot per point) in the species colours of the automata
+    pictures; y is clipped to `ylim`, x spans every series' range."""
     img = Image.new("RGB", (width, height), "white")
     draw = ImageDraw.Draw(img)
     font = ImageFont.load_default()
     left, right, top, bottom = 40, width - 110, 20, height - 30
     draw.rectangle([left, top, right, bottom], outline="black")
-    n = max(len(v) for v in series.values())
+    xs = np.concatenate([np.asarray(x, float) for x, _ in series.values()])
+    x_lo, x_hi = float(xs.min()), float(xs.max())
+    x_span = x_hi - x_lo if x_hi > x_lo else 1.0
     lo, hi = ylim
     for frac in (0.0, 0.5, 1.0):
         y = bottom - frac * (bottom - top)
         draw.text((4, y - 6), f"{lo + frac * (hi - lo):.1f}", fill="black", font=font)
-    draw.text((left, bottom + 8), f"iteration 0 .. {n - 1}", fill="black", font=font)
+    if x_label:
+        draw.text((left, bottom + 8), x_label, fill="black", font=font)
     if title:
         draw.text((left, 4), title, fill="black", font=font)
-    for i, (label, values) in enumerate(series.items()):
-        pts = [(left + (right - left) * t / max(n - 1, 1), bottom - (min(max(v, lo), hi) - lo) / (hi - lo) * (bottom - top))
-               for t, v in enumerate(values)]
+    for i, (label, (x, y)) in enumerate(series.items()):
+        pts = [(left + (right - left) * (float(a) - x_lo) / x_span,
+                bottom - (min(max(float(b), lo), hi) - lo) / (hi - lo) * (bottom - top)) for a, b in zip(x, y)]
         col = SPECIES_COLOURS[i % len(SPECIES_COLOURS)]
-        if len(pts) > 1:
+        if dots:
+            for px, py in pts:
+                draw.ellipse([px - 1.5, py - 1.5, px + 1.5, py + 1.5], fill=col)
+        elif len(pts) > 1:
             draw.line(pts, fill=col, width=2)
         draw.text((right + 8, top + 14 * i), str(label), fill=col, font=font)
     return img

@@ -185,25 +185,41 @@ def _honeycomb(quick):
 
 
 @registered(ExperimentPreset, "frog", "poison dart frog: stripes on a 50x10 strip grown to 125x85 (no-flux)", "leopard paper Fig. 11")
-def _frog(quick):
-    start, grow = ((50, 10), 75) if quick else ((50, 10), 75)
+def _frog(quick, method="division"):
+    """The frog of Fig. 11; `method` other than "division" grows it by interpolating the
+    whole lattice one row and column larger instead (the control of section 8.2, Fig. 22)."""
+    start, grow = (50, 10), 75
     dt = 0.01
     period = 200  # 1 / (0.5 x 0.01)
     upper = (6.8, 6.2)
+    steady = 2000 if quick else 4000
     if quick:
         grow = 30
     return Experiment(
-        name="frog", initial=Initial("paper", start),
+        name="frog" if method == "division" else f"frog-{method}", initial=Initial("paper", start),
         phases=(
-            Phase(Turing(4.5, 4.0, upper=upper), steps=2000 if quick else 4000, dt=dt, boundary="no-flux", frames=1,
+            Phase(Turing(4.5, 4.0, upper=upper), steps=steady, dt=dt, boundary="no-flux", frames=1,
                   name="stripes"),
-            Phase(Turing(4.5, 2.0, upper=upper), steps=grow * period, dt=dt, boundary="no-flux", growth=Growth(0.5),
-                  frames=4, name="growth", capacity=(start[0] + grow, start[1] + grow)),
+            Phase(Turing(4.5, 2.0, upper=upper), steps=grow * period, dt=dt, boundary="no-flux",
+                  growth=Growth(0.5, method=method), frames=4, name="growth", capacity=(start[0] + grow, start[1] + grow)),
         ),
-        description="static 50x10 r=4.5 s=4 Ua=6.8 Ub=6.2 (4,000 steps), then s=2 growing at 0.5/unit time to 125x85",
-        figure="leopard paper Fig. 11", show="a",
+        description=f"static 50x10 r=4.5 s=4 Ua=6.8 Ub=6.2 ({steady:,} steps), then s=2 growing at 0.5/unit time to "
+                    f"{start[0] + grow}x{start[1] + grow}"
+                    + ("" if method == "division" else f" by {method} interpolation of the whole lattice"),
+        figure="leopard paper Fig. 11" if method == "division" else "leopard paper Fig. 22", show="a",
         cmap=Gradient([(0.0, "#0c0a08"), (0.45, "#1c1710"), (0.75, "#f2c20f"), (1.0, "#ffe04a")]),
     )
+
+
+FROG_METHODS = ("nearest", "bilinear", "bicubic")
+for _method in FROG_METHODS:
+    register(ExperimentPreset(f"frog-{_method}", f"the frog of Fig. 11 grown by {_method} interpolation instead of division",
+                              "leopard paper Fig. 22", lambda quick, _m=_method: _frog(quick, _m)))
+register(ExperimentPreset(
+    "frog-interpolation", "the frog grown by matrix expansion, then by nearest, bilinear and bicubic interpolation: "
+    "without division noise the stripes split but no spots form", "leopard paper Fig. 22",
+    members=("frog", *(f"frog-{m}" for m in FROG_METHODS)), row_labels=("frog",),
+    col_labels=("matrix expansion", *FROG_METHODS)))
 
 
 @registered(ExperimentPreset, "squirrel", "thirteen-lined ground squirrel: production on a row during growth", "leopard paper Fig. 12")
@@ -233,7 +249,9 @@ def leopard_row_weights(n: int = 30) -> np.ndarray:
 
 
 @registered(ExperimentPreset, "leopard", "leopard rosettes: definition, development and maintenance phases", "leopard paper Figs. 13-17")
-def _leopard(quick):
+def _leopard(quick, development=None):
+    """The leopard of Figs. 13-17; `development` shortens its development phase to that many
+    of the paper's iterations (Fig. 20; the quick run scales them as its own 4,500 to 12,000)."""
     turing = Turing(40.0, 5.0, lower=(0.0, 2.0))
     reinf = Reinforcement(threshold=5.0, width=5.0, diffusion=1.0)
     dt = 0.0015
@@ -247,10 +265,12 @@ def _leopard(quick):
         start, n_def, n_dev, n_main = (130, 130), 220000, 12000, 10000
         initial = Initial("constant", start, params=(4.0, 4.0), names=("a", "b"))
         sources = (Source("b", 0.01, "center-row"),)
+    if development is not None:
+        n_dev = int(development) if not quick else 50 * round(development * n_dev / LEOPARD_DEVELOPMENT / 50)
     dev_size = start[0] + n_dev // 50
     final = dev_size + -(-n_main // 500)
     return Experiment(
-        name="leopard", initial=initial,
+        name="leopard" if development is None else f"leopard-development-{development}", initial=initial,
         phases=(
             Phase(turing, steps=n_def, dt=dt, boundary="no-flux", sources=sources,
                   frames=(5000, n_def // 2, n_def) if not quick else 2, name="definition"),
@@ -260,12 +280,26 @@ def _leopard(quick):
             Phase(Composite((reinf, reinf)), steps=n_main, dt=dt, boundary="no-flux", keep=("b", "c"),
                   growth=Growth(rate=1.0 / (500 * dt)), frames=2, name="maintenance", capacity=(final, final)),
         ),
-        description=("definition: A = B = 4 at 130x130, r=40 s=5 Lb=2, B produced on the central row, 220,000 steps; "
-                     "development: C = copy of B under reinforcement (t=5, w=5, Dc=1), growth 13.33/unit time "
-                     "(middle rows divide half as often) to 370x370 in 12,000 steps; maintenance: B and C reinforced, "
-                     "growth 1.33 to 390x390 in 10,000 steps; final melanin texture from B and C"),
-        figure="leopard paper Figs. 13-17", show="melanin", cmap="leopard",
+        description=(("definition (quick): random start at 48x48, r=40 s=5 Lb=2, 12,000 steps; " if quick else
+                      "definition: A = B = 4 at 130x130, r=40 s=5 Lb=2, B produced on the central row, 220,000 steps; ")
+                     + "development: C = copy of B under reinforcement (t=5, w=5, Dc=1), growth 13.33/unit time "
+                     f"(middle rows divide half as often) to {dev_size}x{dev_size} in {n_dev:,} steps; maintenance: "
+                     f"B and C reinforced, growth 1.33 to {final}x{final} in {n_main:,} steps; final melanin texture "
+                     "from B and C"),
+        figure="leopard paper Figs. 13-17" if development is None else "leopard paper Fig. 20", show="melanin",
+        cmap="leopard",
     )
+
+
+LEOPARD_DEVELOPMENT = 12000  # the paper's development phase (section 7)
+LEG_DEVELOPMENT = (10000, 9000, 8000, 7000, 6000, 5000)  # Fig. 20, top to bottom
+for _n in LEG_DEVELOPMENT:
+    register(ExperimentPreset(f"leopard-development-{_n}", f"the leopard with its development phase cut to {_n:,} "
+                              "iterations", "leopard paper Fig. 20", lambda quick, _n=_n: _leopard(quick, _n)))
+register(ExperimentPreset(
+    "leopard-leg", "leopard spots to rosettes: the development phase cut from 10,000 to 5,000 iterations (the leg)",
+    "leopard paper Fig. 20", members=tuple(f"leopard-development-{n}" for n in LEG_DEVELOPMENT), row_labels=("",),
+    col_labels=tuple(f"{n:,}" for n in LEG_DEVELOPMENT)))
 
 
 def _development(quick, row):
