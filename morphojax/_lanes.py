@@ -14,7 +14,7 @@ on the chunking or on a member's place in its group.
 The layout applies where every member's step is pointwise in its parameters and free of
 randomness: a square lattice (the sweep's), a built-in model whose parameters are scalars or
 per-species vectors (no parameter maps; a user's `Reaction` function is promised plain
-(species, rows, cols) arrays), no growth, no sources (`lanes_apply`). A group checks its
+(species, rows, cols) arrays, and a `Modulated` model makes maps from the state), no growth, no sources (`lanes_apply`). A group checks its
 members for non-finite values where a lone run does (`default_chunk`), but only flags them:
 the sweep re-runs a flagged group member by member to find the exact first bad step.
 """
@@ -32,7 +32,7 @@ from ._loop import _scan, default_chunk
 from ._step import Carry, Config, make_step
 from ._sweep_members import member_model
 from .domains import AbstractDomain, _stencils
-from .models import Composite, Reaction
+from .models import Composite, Modulated, Reaction
 
 # Members per group: one vector register of the host CPU's widest common width (AVX2, 32
 # bytes), 8 float32 or 4 float64 members; 16 and 32 measured slower (figures in
@@ -46,13 +46,16 @@ def lane_count(dtype) -> int:
     return max(1, VECTOR_BYTES // np.dtype(dtype).itemsize)
 
 
-def _user_function(model) -> bool:
-    return isinstance(model, Reaction) or (isinstance(model, Composite) and any(map(_user_function, model.parts)))
+def _plain_layout_only(model) -> bool:
+    """A user's function (promised plain arrays) or parameters computed from the state."""
+    if isinstance(model, Composite):
+        return any(map(_plain_layout_only, model.parts))
+    return isinstance(model, (Reaction, Modulated))
 
 
 def lanes_apply(model, growth, sources, probe) -> bool:
     """Whether a sweep's members can run in lanes (see the module's docstring)."""
-    if growth is not None or sources or probe.growable or _user_function(model):
+    if growth is not None or sources or probe.growable or _plain_layout_only(model):
         return False
     return all(jnp.ndim(leaf) <= 1 for leaf in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array)))
 

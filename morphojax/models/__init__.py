@@ -3,7 +3,9 @@
 `_base` holds `AbstractModel` / `AbstractReaction` and the per-species helpers; each family
 of reactions has its module (`_turing`: Bard, Turing; `_classic`: Gray-Scott and the other
 two-species systems of the literature; `_reinforcement`; `_saturation`: the
-thesis's cubic and rule-based reinforcement; `_custom`: a user's own reaction);
+thesis's cubic and rule-based reinforcement; `_morphogen`: a signal that only diffuses,
+is produced and removed; `_custom`: a user's own reaction); `_modulated` sets parameters
+from a reagent's concentration (thesis 5.3);
 `_composite` runs several side by side; `_names` builds a model from its command-line name.
 """
 
@@ -11,6 +13,8 @@ from ._base import AbstractModel, AbstractReaction, per_species
 from ._classic import Brusselator, FitzHughNagumo, GiererMeinhardt, GrayScott, Schnakenberg
 from ._composite import Composite
 from ._custom import Reaction, ReactionFunction
+from ._modulated import Modulated, Modulation
+from ._morphogen import Morphogen
 from ._names import MODELS, model_from_name
 from ._reinforcement import Reinforcement
 from ._saturation import RuleReinforcement, ThesisReinforcement
@@ -27,6 +31,9 @@ __all__ = [
     "GiererMeinhardt",
     "GrayScott",
     "MODELS",
+    "Modulated",
+    "Modulation",
+    "Morphogen",
     "model_from_name",
     "per_species",
     "Reaction",

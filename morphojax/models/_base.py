@@ -96,6 +96,11 @@ class AbstractModel(eqx.Module):
     def diffusion(self) -> Array:
         """Diffusion rate per species (cells^2 per unit time), shape (species,) or (species, rows, cols)."""
 
+    def diffusion_at(self, x: Array) -> Array:
+        """Diffusion rates for the stacked state `x`: `diffusion()`, unless the rates follow
+        the state (`Modulated`)."""
+        return self.diffusion()
+
     @property
     def n_species(self) -> int:
         return len(self.species)

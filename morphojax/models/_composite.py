@@ -53,6 +53,9 @@ class Composite(AbstractModel):
     def diffusion(self):
         return self._cat([p.diffusion() for p in self.parts])
 
+    def diffusion_at(self, x):
+        return self._cat([p.diffusion_at(xi) for p, xi in zip(self.parts, self._split(x))])
+
     @property
     def lower(self):  # type: ignore[override]
         return self._cat([p.lower for p in self.parts])

@@ -18,6 +18,7 @@ from . import _reactions  # noqa: F401  (registers the classic reactions' Turing
 from . import _lattices  # noqa: F401  (registers the square/hexagonal lattice presets)
 from . import _potts  # noqa: F401  (registers the cellular Potts presets)
 from . import _anisotropy  # noqa: F401  (registers thesis Figs. 5.1 and 5.13: per-cell rates, anisotropy)
+from . import _modulation  # noqa: F401  (registers thesis Figs. 5.11 and 5.12: parameters set from a gradient)
 from . import _meshes  # noqa: F401  (registers the triangle-mesh presets)
 from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets: Wireworld, reinforcement patterns)
 from . import _cells  # noqa: F401  (registers the thesis's cell experiments, run from its listings)

@@ -1,0 +1,63 @@
+"""A signal reagent that only diffuses, is produced and is removed: the gradients of the
+thesis's chapter 5 (a producer cell or row, removal elsewhere), which modulate other
+parameters (`Modulated`)."""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+from jax import Array
+
+from .._checks import as_float_array, check_finite, check_range
+from ._base import AbstractReaction, check_limits, species_stack
+
+
+class Morphogen(AbstractReaction):
+    """One reagent r with production, removal and diffusion, no reaction with others:
+
+        dr/dt = production - removal - decay r + D lap(r)
+
+    production: per unit time, a scalar or a (rows, cols) map (a producer cell is a map
+        that is zero but there).
+    removal: zero-order loss per unit time (the thesis's "change R conc -0.001" every
+        iteration is removal 0.001 at dt 1); with the lower limit 0 the signal stays
+        non-negative, so removal empties a cell and stops there.
+    decay: first-order loss rate (per unit time).
+    All of them, like the limits, may be maps.
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("r",)
+    ALIASES: ClassVar[dict[str, str]] = {"diffusion": "diffusion_rate"}  # `diffusion()` is the method
+    production: Array
+    removal: Array
+    decay: Array
+    diffusion_rate: Array
+    lower: Array
+    upper: Array
+
+    def __init__(self, production=0.0, removal=0.0, decay=0.0, diffusion=0.1, lower=0.0, upper=math.inf, *,
+                 diffusion_rate=None):
+        if diffusion_rate is not None:  # the field's own name, used by `replace`
+            diffusion = diffusion_rate
+        self.production = as_float_array(production, "Morphogen.production")
+        self.removal = as_float_array(removal, "Morphogen.removal")
+        self.decay = as_float_array(decay, "Morphogen.decay")
+        self.diffusion_rate = as_float_array(diffusion, "Morphogen.diffusion")
+        self.lower = species_stack(lower, 1, "Morphogen.lower")
+        self.upper = species_stack(upper, 1, "Morphogen.upper")
+
+    def __check_init__(self):
+        for name in ("production", "removal", "decay"):
+            check_finite(getattr(self, name), f"Morphogen.{name}")
+            check_range(getattr(self, name), f"Morphogen.{name} (per unit time)", low=0.0)
+        check_finite(self.diffusion_rate, "Morphogen.diffusion")
+        check_range(self.diffusion_rate, "Morphogen.diffusion (a diffusion rate)", low=0.0)
+        check_limits(self)
+
+    def reaction(self, x):
+        r = x[0]
+        return (self.production - self.removal - self.decay * r)[None]
+
+    def diffusion(self):
+        return species_stack(self.diffusion_rate, 1, "Morphogen diffusion")
