@@ -106,8 +106,9 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
             amount = src.production(c.size, source_key(key, c.step, j), x[src.index])
             production[src.index] = production[src.index] + amount if src.index in production else amount
         mask = domain.active_mask(x.shape[1:], c.size) if cfg.dynamic else None
-        terms = domain.diffusion(c.p, per_species(model.diffusion_at(x), domain.ndim))
-        new = update(model, x, terms, production, mask)
+        acting = model.at(x)  # the model itself unless its parameters follow the state
+        terms = domain.diffusion(c.p, per_species(acting.diffusion(), domain.ndim))
+        new = update(acting, x, terms, production, mask)
         p = domain.write(c.p, new, c.size, cfg.dynamic)
         size, overflow = c.size, c.overflow
         if growth is not None:

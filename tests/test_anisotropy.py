@@ -247,6 +247,18 @@ def test_thesis_fig5_13_orientation():
         assert ratio["v"] > 2.5 * ratio[case] and ratio["u"] < ratio[case] / 2.5, ratio
 
 
+def test_thesis_frog_stripes_above_spots_below():
+    """Fig. 7.16 on a lattice (quick, 60 x 60): V anisotropic along the vertical polarity of
+    the upper half lays vertical stripes there (gradients across them, along the rows:
+    <gy^2> / <gx^2> well below 1); the unpolarised lower half has no direction."""
+    result = mj.run_experiment(mj.preset("thesis-fig7.16", quick=True), seed=0)
+    u = result.state.array("a")
+    half = u.shape[0] // 2
+    upper, lower = (structure_tensor(part) for part in (u[:half], u[half:]))
+    assert upper[1] / upper[0] < 0.3
+    assert 0.6 < lower[1] / lower[0] < 1.6
+
+
 # ---- the hexagonal lattice ---------------------------------------------------------------------
 HEX_SHAPE = (8, 7)
 

@@ -151,3 +151,20 @@ def test_thesis_figures_on_a_lattice():
     boundary = [s for label, s in fig12.frames if label.startswith("gradient")][-1]
     np.testing.assert_array_equal(boundary.array("r"), r12)  # R, and so U's rate, as set at the boundary
     assert np.ptp(boundary.array("a")) > 0 and fig12.state.step == 5000
+
+
+def test_thesis_moray_eel_spot_is_held_by_its_gradient():
+    """Fig. 7.18 on a lattice (quick): P only spreads, so its total stays the 16 units of its
+    two starting cells through both phases (no-flux, no production); V's lower limit follows
+    P, so wherever P is above the map's range V sits at its limit of 6.5."""
+    from morphojax.presets._thesis_animals import EEL_SHAPE, EEL_SPOT, thesis_rows
+
+    eel = mj.run_experiment(mj.preset("thesis-fig7.18", quick=True), seed=0, frames=True)
+    for _, state in eel.frames + [("final", eel.state)]:
+        if "p" in state.names:
+            assert state.array("p").sum() == pytest.approx(16.0, rel=1e-5)
+    p, v = eel.state.array("p"), eel.state.array("b")
+    held = p >= 0.011
+    assert held.sum() > 100 and np.all(v[held] == np.float32(6.5))
+    start = thesis_rows(np.isin(np.arange(EEL_SHAPE[0] * EEL_SHAPE[1]), EEL_SPOT), EEL_SHAPE)
+    assert np.all(held[start])  # the spot grows around the two cells P started on

@@ -96,10 +96,11 @@ class AbstractModel(eqx.Module):
     def diffusion(self) -> Array:
         """Diffusion rate per species (cells^2 per unit time), shape (species,) or (species, rows, cols)."""
 
-    def diffusion_at(self, x: Array) -> Array:
-        """Diffusion rates for the stacked state `x`: `diffusion()`, unless the rates follow
-        the state (`Modulated`)."""
-        return self.diffusion()
+    def at(self, x: Array) -> "AbstractModel":
+        """The model as it acts on the stacked state `x` (species, ...): itself, unless its
+        parameters follow the state (`Modulated`). A step takes its reaction, rates and
+        limits from it."""
+        return self
 
     @property
     def n_species(self) -> int:

@@ -53,8 +53,9 @@ class Composite(AbstractModel):
     def diffusion(self):
         return self._cat([p.diffusion() for p in self.parts])
 
-    def diffusion_at(self, x):
-        return self._cat([p.diffusion_at(xi) for p, xi in zip(self.parts, self._split(x))])
+    def at(self, x):
+        parts = tuple(p.at(xi) for p, xi in zip(self.parts, self._split(x)))
+        return self if all(a is b for a, b in zip(parts, self.parts)) else Composite(parts, species=self.names)
 
     @property
     def lower(self):  # type: ignore[override]

@@ -10,12 +10,14 @@ Every step, each `Modulation` maps the current concentration of its reagent `by`
 and the wrapped model runs with that (rows, cols) map as its parameter `parameter` (a name
 of the wrapped model's `parameters()`). A reaction parameter (a scale) changes the
 reaction; a diffusion rate changes the diffusion, in the flux form of per-cell rates
-(harmonic mean per link). A parameter set once, at a given step, is a phase boundary:
+(harmonic mean per link); a limit (`lower_b`) changes the clamp. A parameter set once, at a given step, is a phase boundary:
 `modulated.at(state)` gives the wrapped model with the maps of that state, to run the next
 phase with.
 
 The explicit-Euler limit is checked against the largest rate a map can give
-(max(out_low, out_high)), so a modulated diffusion never runs past its stable dt.
+(max(out_low, out_high)), so a modulated diffusion never runs past its stable dt. The
+limits a run reports before it starts (`lower`, `upper`) are the wrapped model's; a
+modulated limit takes its map's values as the run goes.
 """
 
 from __future__ import annotations
@@ -108,15 +110,12 @@ class Modulated(AbstractModel):
 
     def at(self, x) -> AbstractModel:
         """The wrapped model with every modulated parameter set from `x`: the stacked fields
-        (species, rows, cols) or a `State`."""
+        (species, rows, cols) or a `State`. A step runs with it, reaction, rates and limits."""
         x = jnp.stack([jnp.asarray(a) for a in x.arrays()]) if hasattr(x, "arrays") else jnp.asarray(x)
-        return self.model.replace(**{m.parameter: m(x[self.species.index(m.by)]) for m in self.modulations})
+        return self.model.at(x).replace(**{m.parameter: m(x[self.species.index(m.by)]) for m in self.modulations})
 
     def reaction(self, x):
         return self.at(x).reaction(x)
-
-    def diffusion_at(self, x):
-        return self.at(x).diffusion()
 
     def diffusion(self):
         # the largest rates the maps can give: what the explicit-Euler check needs (a

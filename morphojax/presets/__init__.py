@@ -21,6 +21,7 @@ from . import _anisotropy  # noqa: F401  (registers thesis Figs. 5.1 and 5.13: p
 from . import _modulation  # noqa: F401  (registers thesis Figs. 5.11 and 5.12: parameters set from a gradient)
 from . import _meshes  # noqa: F401  (registers the triangle-mesh presets)
 from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets: Wireworld, reinforcement patterns)
+from . import _thesis_animals  # noqa: F401  (registers the thesis's frog and moray eel on a lattice)
 from . import _cells  # noqa: F401  (registers the thesis's cell experiments, run from its listings)
 from ._automaton_outputs import run_automaton, run_life_like
 
