@@ -9,7 +9,7 @@
 
 from .domains import BOUNDARIES, STENCILS, AbstractDomain, HexLattice, Lattice, laplacian, max_stable_dt
 from .domains import Mesh
-from .domains import gradient_polarity
+from .domains import Polarize, gradient_polarity
 from .models import (
     AbstractModel,
     Bard,
@@ -112,6 +112,7 @@ __all__ = [
     "glider",
     "Gradient",
     "gradient_polarity",
+    "Polarize",
     "gray_scott_state",
     "GrayScott",
     "Growth",

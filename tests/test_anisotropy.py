@@ -322,3 +322,138 @@ def test_gradient_polarity_points_along_the_gradient(x64):
     np.testing.assert_allclose(ramp[:, 1:-1], 0.0, atol=1e-12)
     domain = mj.Lattice("moore", "no-flux", anisotropic="b", polarity=angle)
     assert float(domain.polarised[7, 7]) == 0.0 and float(np.asarray(domain.polarised).sum()) == n * n - 1
+
+
+# ---- a polarity that follows a reagent during the run (Polarize, eq. 4.10) ----------------------
+def _oracle_polarity(reagent, domain):
+    """Eq. 4.10 written cell by cell: sum_j (R_j - R) d_j / |d_j| over the neighbours (the
+    square lattice's eight, the mirrored edge cell beyond a no-flux border; the hexagonal
+    lattice's six, none beyond a no-flux border), as angles with NaN where it vanishes."""
+    rows, cols = reagent.shape
+    out = np.full(reagent.shape, np.nan)
+    for r in range(rows):
+        for c in range(cols):
+            px = py = 0.0
+            if isinstance(domain, mj.HexLattice):
+                x, y = oracle._centre(r, c)
+                for r2, c2 in oracle.hex_neighbours(r, c):
+                    if domain.boundary != "wrap" and not (0 <= r2 < rows and 0 <= c2 < cols):
+                        continue
+                    x2, y2 = oracle._centre(r2, c2)
+                    diff = reagent[r2 % rows, c2 % cols] - reagent[r, c]
+                    px, py = px + diff * (x2 - x), py + diff * (y2 - y)
+            else:
+                for (dr, dc), _ in oracle.OFFSETS["moore"]:
+                    rj, cj, _, _ = oracle._neighbour(r + dr, c + dc, rows, cols, domain.boundary)
+                    diff = reagent[rj, cj] - reagent[r, c]
+                    px, py = px + diff * dc / np.hypot(dr, dc), py + diff * dr / np.hypot(dr, dc)
+            if px or py:
+                out[r, c] = np.arctan2(py, px)
+    return out
+
+
+POLARIZE_DOMAINS = {
+    "square-no-flux": lambda pol: mj.Lattice("moore", "no-flux", anisotropic="b", polarity=pol),
+    "square-wrap": lambda pol: mj.Lattice("nine-point", "wrap", anisotropic="b", polarity=pol),
+    "hex-no-flux": lambda pol: mj.HexLattice("no-flux", "sum", anisotropic="b", polarity=pol),
+    "hex-wrap": lambda pol: mj.HexLattice("wrap", anisotropic="b", polarity=pol),
+}
+
+
+@pytest.mark.parametrize("kind", list(POLARIZE_DOMAINS))
+def test_polarize_follows_the_reagent_against_the_oracle(x64, kind):
+    """V diffuses along the gradient of R (species c) as R itself spreads from a producer:
+    every step the polarity is the oracle's eq. 4.10 of R at the start of that step."""
+    shape = (8, 6)
+    rng = np.random.default_rng(11)
+    a, b, r = rng.uniform(3, 5, shape), rng.uniform(3, 5, shape), rng.uniform(0, 1, shape)
+    production = np.zeros(shape)
+    production[2, 3] = 1.0
+    rates = (0.05, 0.08, 0.1)
+    model = mj.Composite((mj.Bard(16.0, 12.0, 0.0, rates[0], rates[1]),
+                          mj.Morphogen(production=production, diffusion=rates[2])))
+    domain = POLARIZE_DOMAINS[kind](mj.Polarize("c"))
+    out = mj.simulate(model, mj.State.from_arrays([a, b, r]), 4, 0.5, domain=domain)
+    hex_ = kind.startswith("hex")
+    boundary = domain.boundary
+    for _ in range(4):
+        angle = _oracle_polarity(r, domain)
+        if hex_:
+            term = lambda u, d, ang=None: oracle.hex_link_term(u, d, boundary, domain.operator, ang)  # noqa: E731
+        else:
+            term = lambda u, d, ang=None: oracle.link_term(u, d, boundary, domain.stencil, ang)  # noqa: E731
+        a, b, r = (a + 0.5 * term(a, rates[0]), b + 0.5 * term(b, rates[1], angle),
+                   r + 0.5 * (production + term(r, rates[2])))
+    np.testing.assert_allclose(out.array("b"), b, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(out.array("c"), r, rtol=1e-10, atol=1e-10)
+
+
+def test_polarize_is_carried_by_the_state_files_and_resumes(x64):
+    """The polarity is a function of the state: a run cut in two is the uninterrupted run,
+    the domain's file form rebuilds it, and a resting reagent gives the fixed polarity."""
+    shape = (9, 9)
+    rng = np.random.default_rng(12)
+    state = mj.State.from_arrays([rng.uniform(3, 5, shape), rng.uniform(3, 5, shape), rng.uniform(0, 1, shape)])
+    model = mj.Composite((mj.Bard(16.0, 12.0, 0.05, 0.08, 0.02), mj.Morphogen(diffusion=0.05)))
+    domain = mj.Lattice("moore", "no-flux", anisotropic="b", polarity=mj.Polarize(2))
+    whole = mj.simulate(model, state, 20, 0.5, domain=domain)
+    halves = mj.simulate(model, mj.simulate(model, state, 8, 0.5, domain=domain), 12, 0.5, domain=domain)
+    np.testing.assert_array_equal(whole.fields, halves.fields)
+    back = _serialise.domain_from_dict(json.loads(json.dumps(_serialise.domain_to_dict(domain))))
+    assert back == domain and back.follow == 2 and not back.supports_growth
+    resting = mj.Composite((model.parts[0], mj.Morphogen(diffusion=0.0)))
+    fixed = mj.Lattice("moore", "no-flux", anisotropic="b", polarity=mj.gradient_polarity(state.array("c")))
+    np.testing.assert_allclose(mj.simulate(resting, state, 20, 0.5, domain=domain).fields,
+                               mj.simulate(resting, state, 20, 0.5, domain=fixed).fields, rtol=1e-12)
+
+
+def test_polarize_gradient_and_errors(x64):
+    """d(loss)/d(R's rate) flows through the polarity R sets (against finite differences);
+    a reagent beyond the model's species and a polarised mask with Polarize are refused."""
+    shape = (8, 8)
+    rng = np.random.default_rng(13)
+    state = mj.State.from_arrays([rng.uniform(3, 5, shape), rng.uniform(3, 5, shape), rng.uniform(0, 1, shape)])
+    weight = jnp.asarray(rng.normal(size=shape))
+    domain = mj.Lattice("moore", "no-flux", anisotropic="b", polarity=mj.Polarize("c"))
+
+    def loss(rate):
+        model = mj.Composite((mj.Bard(16.0, 12.0, 0.05, 0.08, 0.02), mj.Morphogen(diffusion=rate)))
+        return jnp.sum(mj.simulate(model, state, 10, 0.5, domain=domain).fields[1] * weight)
+
+    g = jax.grad(loss)(0.05)
+    fd = (loss(0.05 + 1e-6) - loss(0.05 - 1e-6)) / 2e-6
+    assert float(g) == pytest.approx(float(fd), rel=1e-5) and abs(float(g)) > 1e-8
+    with pytest.raises(ValueError, match="Polarize"):
+        mj.simulate(mj.Bard(), mj.State.from_arrays([np.ones(shape)] * 2), 1, 0.1, domain=domain)
+    with pytest.raises(ValueError, match="Polarize polarity follows"):
+        mj.Lattice(polarity=mj.Polarize("c"), polarised=np.ones(shape))
+    with pytest.raises(ValueError, match="Polarize.reagent"):
+        mj.Polarize("concentration")
+
+
+def _radial_ratio(v):
+    """<(grad . e_r)^2> / <(grad . e_t)^2> over a ring around the centre of a hexagonal
+    lattice's field (cell centres of the odd-r layout): small for radial stripes (the
+    field changes across them, tangentially), large for concentric rings."""
+    rows, cols = v.shape
+    gy, gx = np.gradient(np.asarray(v, float))
+    gy = gy / (np.sqrt(3.0) / 2.0)
+    r, c = np.mgrid[0:rows, 0:cols]
+    x = c + 0.5 * (r % 2) - (cols // 2 + 0.5 * ((rows // 2) % 2))
+    y = (r - rows // 2) * np.sqrt(3.0) / 2.0
+    dist = np.hypot(x, y)
+    ring = (dist > 3) & (dist < 0.3 * rows)
+    radial = (gx * x + gy * y) / np.maximum(dist, 1e-9)
+    tangential = (gy * x - gx * y) / np.maximum(dist, 1e-9)
+    return (radial[ring] ** 2).mean() / (tangential[ring] ** 2).mean()
+
+
+def test_thesis_figs_5_14_and_5_15_on_the_hexagonal_lattice():
+    """The polarity follows a central producer's gradient as it forms: with V anisotropic
+    the stripes run radially (Fig. 5.14), with U anisotropic they ring the producer (Fig.
+    5.15); quick forms, 60 x 60."""
+    radial = _radial_ratio(mj.run_experiment(mj.preset("thesis-fig5.14-lattice", quick=True), seed=0)
+                           .state.array("b"))
+    rings = _radial_ratio(mj.run_experiment(mj.preset("thesis-fig5.15-lattice", quick=True), seed=0)
+                          .state.array("b"))
+    assert radial < 0.3 and rings > 3.0, (radial, rings)

@@ -11,8 +11,8 @@ point cells) subclass `AbstractDomain` here.
 from ._base import AbstractDomain
 from ._hex import HexLattice
 from ._lattice import Lattice, as_domain, laplacian, max_stable_dt
-from ._links import gradient_polarity
+from ._links import Polarize, gradient_polarity
 from ._mesh import Mesh
 from ._stencils import BOUNDARIES, STENCILS
 
-__all__ = ["AbstractDomain", "as_domain", "BOUNDARIES", "gradient_polarity", "HexLattice", "laplacian", "Lattice", "max_stable_dt", "Mesh", "STENCILS"]
+__all__ = ["AbstractDomain", "as_domain", "BOUNDARIES", "gradient_polarity", "HexLattice", "laplacian", "Lattice", "max_stable_dt", "Mesh", "Polarize", "STENCILS"]

@@ -102,6 +102,33 @@ def hex_link_sum(p, rates, mask=None):
             + (down_left * to_left + down_right * to_right) * has_down)
 
 
+def hex_gradient_leaves(p, mask=None):
+    """(angles, polarised mask) along the local gradient of a ghost-padded odd-r reagent
+    `p` (rows + 2, cols + 2): p = sum_j (R_j - R) d_j over the six links (thesis eq. 4.10;
+    unit links), `mask` dropping those that leave a no-flux lattice; a cell where p = 0 is
+    unpolarised."""
+    rows = p.shape[-2] - 2
+    even = (np.arange(rows) % 2 == 0)[:, None]  # static: the layout's row parity
+    up, down, mid = p[:-2, :], p[2:, :], p[1:-1, :]
+    u = mid[:, 1:-1]
+    left, right = mid[:, :-2] - u, mid[:, 2:] - u
+    up_left = jnp.where(even, up[:, :-2], up[:, 1:-1]) - u
+    up_right = jnp.where(even, up[:, 1:-1], up[:, 2:]) - u
+    down_left = jnp.where(even, down[:, :-2], down[:, 1:-1]) - u
+    down_right = jnp.where(even, down[:, 1:-1], down[:, 2:]) - u
+    if mask is not None:
+        has_up, has_down, has_left, has_right = mask
+        to_left, to_right = jnp.where(even, has_left, 1.0), jnp.where(even, 1.0, has_right)
+        left, right = left * has_left, right * has_right
+        up_left, up_right = up_left * has_up * to_left, up_right * has_up * to_right
+        down_left, down_right = down_left * has_down * to_left, down_right * has_down * to_right
+    px = right - left + 0.5 * (up_right - up_left + down_right - down_left)
+    py = ROW_HEIGHT * (down_left + down_right - up_left - up_right)
+    zero = (px == 0) & (py == 0)
+    angle = jnp.arctan2(jnp.where(zero, 0.0, py), jnp.where(zero, 1.0, px))
+    return angle, (~zero).astype(p.dtype)
+
+
 def links(shape):
     """1.0 where a (rows, cols) lattice has a neighbour above, below, left and right of a
     cell (as a column, a column, a row and a row vector): the no-flux lattice's links."""
@@ -132,7 +159,9 @@ class HexLattice(AbstractDomain):
             Laplacian in the same units (a rate D with "sum" diffuses as 1.5 D with
             "laplacian"), spectral radius 9.
 
-        maps, anisotropic, polarity, polarised: as on `Lattice`: a diffusion map diffuses in
+        maps, anisotropic, polarity, polarised, follow: as on `Lattice` (a `Polarize`
+            polarity follows its reagent's gradient over the six links, with the links
+            that leave a no-flux lattice dropped): a diffusion map diffuses in
             the flux form by default (each link carries the operator's weight (2/3 or 1)
             times the harmonic mean of its two cells' rates, eq. 4.7), or "pointwise"
             D(x) lap(u); the anisotropic species scale each cell's rate toward a neighbour
@@ -153,9 +182,10 @@ class HexLattice(AbstractDomain):
     anisotropic: tuple = eqx.field(static=True)
     polarity: Array | None
     polarised: Array | None
+    follow: int | None = eqx.field(static=True)
 
     def __init__(self, boundary: str = "wrap", operator: str = "laplacian", *, maps: str = "flux",
-                 anisotropic=(), polarity=None, polarised=None):
+                 anisotropic=(), polarity=None, polarised=None, follow=None):
         self.boundary = _stencils.normalise_boundary(boundary)
         key = str(operator).lower()
         key = _OPERATOR_ALIASES.get(key, key)
@@ -164,7 +194,8 @@ class HexLattice(AbstractDomain):
         check_choice(str(maps), "maps", _links.MAPS)
         self.maps = str(maps)
         self.anisotropic = _links.species_indices(anisotropic, "HexLattice")
-        self.polarity, self.polarised = _links.polarity_leaves(polarity, polarised, "HexLattice")
+        self.polarity, self.polarised, self.follow = _links.polarity_fields(polarity, polarised, follow,
+                                                                            "HexLattice")
 
     @property
     def spectral_radius(self) -> float:
@@ -181,7 +212,7 @@ class HexLattice(AbstractDomain):
     @property
     def description(self) -> str:
         what = "Laplacian" if self.operator == "laplacian" else "neighbour sum"
-        aniso = ", anisotropic" if self.anisotropic and self.polarity is not None else ""
+        aniso = ", anisotropic" if self.anisotropic and self.polarised_cells else ""
         return f"hexagonal lattice {what} ({self.boundary}{aniso})"
 
     def check_shape(self, shape) -> None:
@@ -226,30 +257,43 @@ class HexLattice(AbstractDomain):
         _links.check_species(self.anisotropic, n, "HexLattice")
         on_links = [self._on_links(i, rates[i]) for i in range(n)]
         op = None if all(on_links) else self._operator_padded(carried)
-        return [self._link_term(carried[i], rates[i], i) if on_links[i] else rates[i] * op[i] for i in range(n)]
+        shape = carried.shape[-2:]
+        mask = None if self.boundary == "wrap" else tuple(
+            jnp.asarray(v, carried.dtype) for v in links((shape[0] - 2, shape[1] - 2)))
+        # a polarity that follows a reagent: from the fields this step starts from
+        polarity = hex_gradient_leaves(carried[self.follow], mask) if self.follow is not None else (
+            self.polarity, self.polarised)
+        return [self._link_term(carried[i], rates[i], i, polarity, mask) if on_links[i] else rates[i] * op[i]
+                for i in range(n)]
+
+    @property
+    def polarised_cells(self) -> bool:
+        """Whether any polarity is set (fixed angles or one that follows a reagent)."""
+        return self.polarity is not None or self.follow is not None
 
     def _on_links(self, i: int, rate) -> bool:
         """Whether species i diffuses on the links (flux form or anisotropic): static."""
-        if i in self.anisotropic and self.polarity is not None:
+        if i in self.anisotropic and self.polarised_cells:
             return True
         return self.maps == "flux" and tuple(jnp.shape(rate))[-2:] not in ((), (1,), (1, 1))
 
-    def _link_term(self, p, rate, i: int):
-        """sum_j w D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8): each
-        link's exchange is computed from both ends with the same operands (the harmonic
-        mean is symmetric in them), so what one cell gains its neighbour loses."""
+    def _link_term(self, p, rate, i: int, polarity, mask):
+        """sum_j w D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8), given
+        the cells' (angles, polarised mask) and the no-flux link mask: each link's exchange
+        is computed from both ends with the same operands (the harmonic mean is symmetric in
+        them), so what one cell gains its neighbour loses."""
         shape = (p.shape[-2] - 2, p.shape[-1] - 2)
         d = jnp.pad(jnp.broadcast_to(jnp.asarray(rate, p.dtype), shape), 1, mode="wrap")
-        if i in self.anisotropic and self.polarity is not None:
-            if self.polarity.ndim == 2 and tuple(self.polarity.shape) != shape:
-                raise ValueError(f"HexLattice.polarity has shape {tuple(self.polarity.shape)}; the lattice is {shape}")
-            factors = hex_direction_factors(self.polarity, self.polarised)
-            if self.polarity.ndim == 2:
+        angle, polarised = polarity
+        if i in self.anisotropic and angle is not None:
+            if angle.ndim == 2 and tuple(angle.shape) != shape:
+                raise ValueError(f"HexLattice.polarity has shape {tuple(angle.shape)}; the lattice is {shape}")
+            factors = hex_direction_factors(angle, polarised)
+            if angle.ndim == 2:
                 factors = tuple(jnp.pad(f, 1, mode="wrap") for f in factors)
             rates = tuple(d * f for f in factors)
         else:
             rates = (d,) * 3
-        mask = None if self.boundary == "wrap" else tuple(jnp.asarray(v, p.dtype) for v in links(shape))
         s = hex_link_sum(p, rates, mask)
         return s * (2.0 / 3.0) if self.operator == "laplacian" else s
 

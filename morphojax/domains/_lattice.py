@@ -45,8 +45,13 @@ class Lattice(AbstractDomain):
             pi/2 = along a column toward increasing row), or a (rows, cols) array of angles,
             NaN = unpolarised (turned into the `polarised` mask here, so gradients stay
             finite). An array leaf: differentiable and vmappable.
+            Or `Polarize(reagent)`: each cell polarised along the local gradient of that
+            species (eq. 4.10), recomputed from the state at the start of every step, so
+            the polarity follows the reagent through the run (see `Polarize`).
         polarised: 1 where a cell is polarised, 0 where not (default: where `polarity` is
             not NaN); what a saved domain holds beside its NaN-free angles.
+        follow: the species position a `Polarize` polarity follows (what a saved domain
+            holds in its place).
 
     Stability: every link rate is at most D_max times the stencil's weight (a harmonic mean
     lies between its two rates, and |d . p| / |d| <= 1), so the operator is bounded by
@@ -65,15 +70,21 @@ class Lattice(AbstractDomain):
     anisotropic: tuple = eqx.field(static=True)
     polarity: Array | None
     polarised: Array | None
+    follow: int | None = eqx.field(static=True)
 
     def __init__(self, stencil: str = "nine-point", boundary: str = "wrap", *, maps: str = "flux",
-                 anisotropic=(), polarity=None, polarised=None):
+                 anisotropic=(), polarity=None, polarised=None, follow=None):
         self.stencil = _stencils.normalise_stencil(stencil)
         self.boundary = _stencils.normalise_boundary(boundary)
         check_choice(str(maps), "maps", _links.MAPS)
         self.maps = str(maps)
         self.anisotropic = _links.species_indices(anisotropic, "Lattice")
-        self.polarity, self.polarised = _links.polarity_leaves(polarity, polarised, "Lattice")
+        self.polarity, self.polarised, self.follow = _links.polarity_fields(polarity, polarised, follow, "Lattice")
+
+    @property
+    def polarised_cells(self) -> bool:
+        """Whether any polarity is set (fixed angles or one that follows a reagent)."""
+        return self.polarity is not None or self.follow is not None
 
     @property
     def spectral_radius(self) -> float:
@@ -85,10 +96,12 @@ class Lattice(AbstractDomain):
 
     @property
     def supports_growth(self) -> bool:
-        return self.polarity is None
+        return not self.polarised_cells
 
     @property
     def description(self) -> str:
+        if self.anisotropic and self.follow is not None:
+            return f"{self.stencil} stencil (anisotropic, polarity along species {self.follow}'s gradient)"
         if self.anisotropic and self.polarity is not None:
             return f"{self.stencil} stencil (anisotropic)"
         return f"{self.stencil} stencil"
@@ -105,28 +118,36 @@ class Lattice(AbstractDomain):
     def diffusion(self, carried, rates):
         n = carried.shape[0]
         _links.check_species(self.anisotropic, n, "Lattice")
+        if self.follow is not None:
+            _links.check_species((self.follow,), n, "Polarize")
         links = [self._on_links(i, rates[i]) for i in range(n)]
         lap = None
         if not all(links):  # scalar rates, pointwise maps: the stencil, as before the flux form
             lap = _stencils.laplacian_padded(carried, self.stencil)
-        return [self._link_term(carried[i], rates[i], i) if links[i] else rates[i] * lap[i] for i in range(n)]
+        # a polarity that follows a reagent: from the fields this step starts from
+        polarity = _links.gradient_leaves(carried[self.follow]) if self.follow is not None else (
+            self.polarity, self.polarised)
+        return [self._link_term(carried[i], rates[i], i, polarity) if links[i] else rates[i] * lap[i]
+                for i in range(n)]
 
     def _on_links(self, i: int, rate) -> bool:
         """Whether species i diffuses on the links (flux form or anisotropic): static."""
-        if i in self.anisotropic and self.polarity is not None:
+        if i in self.anisotropic and self.polarised_cells:
             return True
         return self.maps == "flux" and tuple(jnp.shape(rate))[-2:] not in ((), (1,), (1, 1))
 
-    def _link_term(self, p, rate, i: int):
-        """sum_j w_ij D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8)."""
+    def _link_term(self, p, rate, i: int, polarity):
+        """sum_j w_ij D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8),
+        given the (angles, polarised mask) of the cells."""
         shape = (p.shape[-2] - 2, p.shape[-1] - 2)
         rate = jnp.broadcast_to(jnp.asarray(rate, p.dtype), shape)
         padded = _stencils.pad(rate, self.boundary)
-        if i in self.anisotropic and self.polarity is not None:
-            if self.polarity.ndim == 2 and tuple(self.polarity.shape) != shape:
-                raise ValueError(f"Lattice.polarity has shape {tuple(self.polarity.shape)}; the lattice is {shape}")
-            factors = _links.direction_factors(self.polarity, self.polarised)
-            if self.polarity.ndim == 2 or self.boundary != "wrap":
+        angle, polarised = polarity
+        if i in self.anisotropic and angle is not None:
+            if angle.ndim == 2 and tuple(angle.shape) != shape:
+                raise ValueError(f"Lattice.polarity has shape {tuple(angle.shape)}; the lattice is {shape}")
+            factors = _links.direction_factors(angle, polarised)
+            if angle.ndim == 2 or self.boundary != "wrap":
                 factors = tuple(jnp.broadcast_to(f, shape) for f in factors)
             factors = _links.pad_factors(factors, self.boundary, shape)
             rates = tuple(padded * f for f in factors)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -41,7 +42,7 @@ MAPS = ("flux", "pointwise")
 LETTERS = "abcdefghijklmnopqrstuvwxyz"
 
 
-def species_indices(anisotropic, who: str) -> tuple:
+def species_indices(anisotropic, who: str, field: str = "anisotropic") -> tuple:
     """The anisotropic species as sorted 0-based positions (from indices or letters)."""
     if isinstance(anisotropic, (str, int)):
         anisotropic = (anisotropic,)
@@ -52,7 +53,7 @@ def species_indices(anisotropic, who: str) -> tuple:
         elif isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 0:
             out.add(int(s))
         else:
-            raise ValueError(f"{who}.anisotropic entries must be species positions: an index >= 0 or a letter "
+            raise ValueError(f"{who}.{field} entries must be species positions: an index >= 0 or a letter "
                              f"'a'..'z' ('a' = first species) (got {s!r})")
     return tuple(sorted(out))
 
@@ -81,6 +82,17 @@ def polarity_leaves(polarity, polarised, who: str):
     if mask is not None and is_concrete(mask) and not np.isin(np.asarray(mask), (0.0, 1.0)).all():
         raise ValueError(f"{who}.polarised must hold 1 (polarised) or 0 (unpolarised) per cell")
     return angle, mask
+
+
+def polarity_fields(polarity, polarised, follow, who: str):
+    """A lattice's (angles, polarised mask, followed species) from its `polarity` (an angle,
+    an array of angles, None or a `Polarize`), `polarised` mask and saved `follow`."""
+    if isinstance(polarity, Polarize) or follow is not None:
+        if polarised is not None or (follow is not None and polarity is not None):
+            raise ValueError(f"{who}.polarity: a Polarize polarity follows its reagent; give no polarised mask "
+                             "and no other polarity with it")
+        return None, None, polarity.reagent if follow is None else Polarize(follow).reagent
+    return (*polarity_leaves(polarity, polarised, who), None)
 
 
 def check_species(anisotropic, n: int, who: str) -> None:
@@ -154,27 +166,60 @@ def link_divergence(p, rates, stencil: str):
     return out
 
 
-def gradient_polarity(reagent, boundary: str = "no-flux"):
-    """Polarity angles from the local gradient of a reagent on the square lattice (thesis
-    eq. 4.10): p = sum_j (R_j - R) d_j / |d_j| over the eight surrounding cells, as an
-    angle in radians from +x (x along a row, y down the rows), NaN where p = 0 (an
-    unpolarised cell). `reagent` is (rows, cols); `boundary` as the lattice's ghost cells.
-    Pass the result as a `Lattice(polarity=...)` for the next phase (polarity set once from a
-    reagent; a polarity that follows the reagent during a run is not provided)."""
-    from ._stencils import normalise_boundary, pad
-
-    r = jnp.asarray(reagent)
-    p = pad(r, normalise_boundary(boundary))
-    rows, cols = r.shape[-2], r.shape[-1]
+def gradient_vector(padded):
+    """sum_j (R_j - R) d_j / |d_j| over the eight surrounding cells (thesis eq. 4.10,
+    before normalising) of a ghost-padded reagent (..., rows + 2, cols + 2): (px, py), x
+    along a row and y down the rows."""
+    rows, cols = padded.shape[-2] - 2, padded.shape[-1] - 2
+    r = padded[..., 1:-1, 1:-1]
     px = jnp.zeros_like(r)
     py = jnp.zeros_like(r)
     for dr in (-1, 0, 1):
         for dc in (-1, 0, 1):
             if dr == dc == 0:
                 continue
-            diff = p[..., 1 + dr: 1 + dr + rows, 1 + dc: 1 + dc + cols] - r
+            diff = padded[..., 1 + dr: 1 + dr + rows, 1 + dc: 1 + dc + cols] - r
             norm = math.hypot(dr, dc)
             px = px + diff * (dc / norm)
             py = py + diff * (dr / norm)
+    return px, py
+
+
+def gradient_leaves(padded):
+    """(angles, polarised mask) of the polarity along a padded reagent's gradient: a cell
+    where the gradient vanishes is unpolarised (angle 0, mask 0), and the angle's
+    derivatives stay finite there."""
+    px, py = gradient_vector(padded)
+    zero = (px == 0) & (py == 0)
+    angle = jnp.arctan2(jnp.where(zero, 0.0, py), jnp.where(zero, 1.0, px))
+    return angle, (~zero).astype(padded.dtype)
+
+
+def gradient_polarity(reagent, boundary: str = "no-flux"):
+    """Polarity angles from the local gradient of a reagent on the square lattice (thesis
+    eq. 4.10): p = sum_j (R_j - R) d_j / |d_j| over the eight surrounding cells, as an
+    angle in radians from +x (x along a row, y down the rows), NaN where p = 0 (an
+    unpolarised cell). `reagent` is (rows, cols); `boundary` as the lattice's ghost cells.
+    Pass the result as a `Lattice(polarity=...)` for a polarity set once from a reagent;
+    `Lattice(polarity=Polarize(reagent))` makes the polarity follow the reagent as it runs."""
+    from ._stencils import normalise_boundary, pad
+
+    px, py = gradient_vector(pad(jnp.asarray(reagent), normalise_boundary(boundary)))
     zero = (px == 0) & (py == 0)
     return jnp.where(zero, jnp.nan, jnp.arctan2(py, px))
+
+
+class Polarize(eqx.Module):
+    """Chemically induced polarization (thesis eq. 4.10): `Lattice(polarity=Polarize("c"))`
+    polarises every cell along the local gradient of a species, recomputed from the state at
+    the start of every step, so a change of the reagent takes effect on the next step (as
+    the thesis's `polarize` action). The polarity is a function of the state, so saved and
+    resumed runs carry it with their fields; a cell where the gradient vanishes is
+    unpolarised. `reagent` is a species position, like `anisotropic`: an index (0 = first)
+    or a letter ("a" = first). On cells, the same action is the rule `mj.cells.Polarize`.
+    """
+
+    reagent: int = eqx.field(static=True)
+
+    def __init__(self, reagent):
+        (self.reagent,) = species_indices((reagent,), "Polarize", "reagent")

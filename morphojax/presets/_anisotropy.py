@@ -1,5 +1,6 @@
-"""Presets of diffusion on a lattice's links: thesis Fig. 5.1 (per-cell rates) and Fig. 5.13
-(anisotropic diffusion along a polarity).
+"""Presets of diffusion on a lattice's links: thesis Fig. 5.1 (per-cell rates), Fig. 5.13
+(anisotropic diffusion along a polarity) and Figs. 5.14-5.15 (a polarity that follows a
+reagent's gradient).
 
 Both use the thesis's square lattice as it computes it: the equal-weight sum over the eight
 neighbours (`Lattice(stencil="moore")`, section 4.3) with its rates as printed, dt 1 (its
@@ -18,6 +19,17 @@ Du 0.08, Dv 0.01, conc 4 dev 2, 40 x 40, 5000 iterations, `use polarity 0`: ever
 polarised along a row), with U (= a) and V (= b) isotropic, both anisotropic, only V, or only
 U (eq. 4.8). The thesis: only V gives stripes along the polarity, only U stripes across it,
 both no direction. Its random numbers are not reproduced.
+
+Figs. 5.14-5.15 (Listings A.1-A.2) on the hexagonal lattice they use (`hex_grid 100 100`,
+without wrap: `HexLattice("no-flux", operator="sum")`, its six-neighbour sum with the rates
+as printed): a producer cell (5050, row 50, column 50) adds 4 of R every iteration and every
+other cell loses 0.001 (`Morphogen`), R diffuses at 0.05, and every cell is polarised along
+R's gradient as it forms (`polarity=Polarize("r")`, eq. 4.10). Fig. 5.14: V anisotropic, U
+0.024, V 0.00625, conc 4 dev 1, the reaction at scale 0.004 from the start, 10,000
+iterations: radial stripes. Fig. 5.15: U anisotropic, U 0.03, the reaction at scale 0.006
+only from iteration 3,000 (a second phase), 18,000 iterations: concentric rings. V is shown,
+the listings' first chemical. `thesis-fig5.14` and `thesis-fig5.15` run the same listings on
+cells.
 """
 
 from __future__ import annotations
@@ -25,8 +37,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._experiment import Experiment, Initial, Phase
-from ..domains import Lattice
-from ..models import Bard
+from .._render import Gradient
+from ..domains import HexLattice, Lattice, Polarize
+from ..models import Bard, Composite, Morphogen
 from ._lattices import thesis_run
 from ._registry import ExperimentPreset, register
 
@@ -90,3 +103,50 @@ register(ExperimentPreset(
     "thesis-fig5.13", "anisotropic diffusion: isotropic, both, only V, only U (four tiles)", "thesis Fig. 5.13",
     members=tuple(f"thesis-fig5.13-{c}" for c in FIG5_13_CASES),
     row_labels=("polarity 0",), col_labels=("isotropic", "both", "V only", "U only")))
+
+
+FIG5_14_CASES = {  # anisotropic species, U's rate, scale, iterations before the reaction, iterations
+    "5.14": (("b",), 0.024, 0.004, 0, 10000),
+    "5.15": (("a",), 0.03, 0.006, 3000, 18000),
+}
+FIG5_14_COLOURS = {"5.14": Gradient([(0.0, "white"), (1.0, "#420009")]),
+                   "5.15": Gradient([(40 / 99, "#0ee1da"), (80 / 99, "#80763e")])}
+
+
+def _fig5_14(figure: str):
+    def build(quick):
+        anisotropic, du, scale, wait, steps = FIG5_14_CASES[figure]
+        side = 60 if quick else 100
+        if quick:
+            wait, steps = wait // 3, steps // 3
+        production = np.zeros((side, side))
+        production[side // 2, side // 2] = 4.0  # the producer, cell 5050 of 100 x 100
+        removal = np.where(production > 0, 0.0, 0.001)
+        domain = HexLattice("no-flux", "sum", anisotropic=anisotropic, polarity=Polarize("c"))
+        gradient = Morphogen(production=production, removal=removal, diffusion=0.05)
+        bard = Bard(alpha=16.0, beta=12.0, sp=scale, da=du, db=0.00625)
+        phases = (Phase(Composite((bard, gradient)), steps=steps - wait, dt=1.0, frames=4, name="polarised",
+                        domain=domain),)
+        if wait:
+            phases = (Phase(Composite((bard.replace(sp=0.0), gradient)), steps=wait, dt=1.0, frames=1,
+                            name="no reaction", domain=domain),) + phases
+        which = "V" if anisotropic == ("b",) else "U"
+        return Experiment(
+            name=f"thesis-fig{figure}-lattice", initial=Initial("uniform", (side, side),
+                                                                params=((3.0, 5.0), (3.0, 5.0), 0.0),
+                                                                names=("a", "b", "r")),
+            phases=phases,
+            description=f"thesis Listing A.{1 if figure == '5.14' else 2} on a {side}x{side} hexagonal lattice "
+                        f"(six-neighbour sum): {which} anisotropic along R's gradient from a central producer "
+                        f"(+4, -0.001 elsewhere, D_R 0.05), Du {du}, Dv 0.00625, scale {scale}"
+                        + (f" from iteration {wait:,}" if wait else "") + f", {steps:,} iterations",
+            figure=f"thesis Fig. {figure} (Listing A.{1 if figure == '5.14' else 2})", show="b",
+            cmap=FIG5_14_COLOURS[figure])
+
+    return build
+
+
+register(ExperimentPreset("thesis-fig5.14-lattice", "radial stripes: V anisotropic along a producer's gradient "
+                          "(Polarize), hexagonal lattice", "thesis Fig. 5.14 (Listing A.1)", _fig5_14("5.14")))
+register(ExperimentPreset("thesis-fig5.15-lattice", "concentric rings: U anisotropic along a producer's gradient "
+                          "(Polarize), hexagonal lattice", "thesis Fig. 5.15 (Listing A.2)", _fig5_14("5.15")))
