@@ -272,3 +272,17 @@ def test_default_start_of_the_reinforcement_rules_lies_between_their_limits():
         values = mj.initial_state(model, jax.random.key(0), (20, 20)).arrays()[0]
         assert values.min() >= float(model.lower[0]) and values.max() <= float(model.upper[0])
         assert values.max() - values.min() > 0.8 * float(model.upper[0] - model.lower[0])
+
+
+def test_thesis_fig7_5_diffusion_sets_the_scale():
+    """Fig. 7.5: the same reinforcement rules with a faster diffusion coarsen the pattern:
+    the interface between the saturated phases (cell pairs on either side of 0.5) shortens
+    as D_R grows (quick form, 40 x 40, 600 iterations)."""
+    from morphojax.presets._saturation import FIG7_5_RATES
+
+    edges = []
+    for rate in FIG7_5_RATES:
+        r = mj.run_experiment(mj.preset(f"thesis-fig7.5-d{rate:g}", quick=True), seed=0).state.array("r")
+        high = r > 0.5
+        edges.append(int((high[1:] != high[:-1]).sum() + (high[:, 1:] != high[:, :-1]).sum()))
+    assert edges[0] > 1.5 * edges[1] and edges[1] >= edges[2] >= edges[3], edges
