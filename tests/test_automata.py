@@ -525,6 +525,27 @@ def test_paper002_series_presets(tmp_path):
     assert len(np.unique(eps)) >= 3  # and the steps differ
 
 
+def test_paper002_wvd_series_without_one_start_or_with_weights(tmp_path):
+    """Fig. 10: with a new start per run, runs of one neighbourhood no longer agree (the
+    steps blur). Fig. 12: a weight moves the fields continuously, so eps_0 takes many values
+    with one neighbourhood (no staircase). Fig. 13: species 1's parameters never change,
+    yet its order parameter moves with species 0's radius (the paper's observation)."""
+    from morphojax.presets import AUTOMATON_PRESETS as PRESETS
+
+    def series(name):
+        PRESETS[name].run(seed=0, quick=True, out=tmp_path / f"{name}.png")
+        with np.load(tmp_path / f"{name}.npz") as data:
+            return data["order_parameter"], data["neighbour_counts_0"]
+
+    eps, counts = series("dur-fig10")
+    spreads = [np.ptp(eps[np.all(counts == c, axis=1), 0]) for c in {tuple(c) for c in counts}]
+    assert max(spreads) > 0.0
+    eps, counts = series("dur-fig12")
+    assert len({tuple(c) for c in counts}) == 1 and len(np.unique(eps[:, 0])) >= 10
+    eps, counts = series("dur-fig13")
+    assert eps.shape[1] == 3 and np.ptp(eps[:, 1]) > 0.02
+
+
 def test_ca_command_3d(tmp_path, capsys):
     from morphojax.cli._ca import register
 
