@@ -104,6 +104,11 @@ def test_bad_modulations_are_clear_errors():
         mj.Modulation("0.sp", "r", 1.0, 1.0, 0, 1)
     with pytest.raises(ValueError, match="Morphogen.removal"):
         mj.Morphogen(removal=-1.0)
+    with pytest.raises(ValueError, match="out_low of '0.da' is not a value it accepts.*diffusion"):
+        mj.Modulated(inner, mj.Modulation("0.da", "r", 0, 1, -0.1, 0.2))  # a negative rate
+    bounded = mj.Composite((mj.Bard(upper=(np.inf, 6.5)), mj.Morphogen()))
+    with pytest.raises(ValueError, match="out_high of '0.lower_b'.*lower must be <= upper"):
+        mj.Modulated(bounded, mj.Modulation("0.lower_b", "r", 0, 1, 0.0, 7.0))  # past the upper limit
 
 
 def test_files_rebuild_the_modulated_model_and_replace_reaches_the_maps():

@@ -10,9 +10,10 @@ Every step, each `Modulation` maps the current concentration of its reagent `by`
 and the wrapped model runs with that (rows, cols) map as its parameter `parameter` (a name
 of the wrapped model's `parameters()`). A reaction parameter (a scale) changes the
 reaction; a diffusion rate changes the diffusion, in the flux form of per-cell rates
-(harmonic mean per link); a limit (`lower_b`) changes the clamp. A parameter set once, at a given step, is a phase boundary:
-`modulated.at(state)` gives the wrapped model with the maps of that state, to run the next
-phase with.
+(harmonic mean per link); a limit (`lower_b`) changes the clamp. Both ends of every map
+must be values the parameter accepts (checked when the model is built). A parameter set
+once, at a given step, is a phase boundary: `modulated.at(state)` gives the wrapped model
+with the maps of that state, to run the next phase with.
 
 The explicit-Euler limit is checked against the largest rate a map can give
 (max(out_low, out_high)), so a modulated diffusion never runs past its stable dt. The
@@ -94,6 +95,14 @@ class Modulated(AbstractModel):
                                  f"species: {', '.join(model.species)}")
         if len({m.parameter for m in modulations}) != len(modulations):
             raise ValueError("Modulated: each parameter can be modulated by one Modulation only")
+        for m in modulations:  # both ends of the map must be values the parameter accepts
+            if is_concrete(m.out_low, m.out_high):
+                for end in ("out_low", "out_high"):
+                    try:
+                        model.replace(**{m.parameter: getattr(m, end)})
+                    except ValueError as err:
+                        raise ValueError(f"Modulation.{end} of {m.parameter!r} is not a value it accepts: {err}") \
+                            from None
         self.model, self.modulations = model, modulations
 
     @property
