@@ -420,6 +420,27 @@ def test_stripe_angle_of_known_stripes():
     assert (lo, hi, geometric) == pytest.approx((-np.pi / 2, np.pi / 2, False))
 
 
+def test_a_striped_targets_fits_must_show_its_stripes():
+    """`auto`'s rule for striped targets: a sample passes when it is about as coherent as the
+    target and runs in its direction (modulo pi); a labyrinth or stripes across fail; below
+    the striped coherence every sample passes."""
+    from fitting._auto import shows_stripes
+
+    rows, cols = np.mgrid[0:48, 0:48].astype(float)
+
+    def stripes(direction):
+        return np.sin(2 * np.pi * (-np.sin(direction) * cols + np.cos(direction) * rows) / 8.0)
+
+    target = fitting.stripe_angle(stripes(0.4))
+    assert shows_stripes(stripes(0.45), target)[0]
+    assert shows_stripes(stripes(0.4 + np.pi), target)[0]  # the same direction, modulo pi
+    assert not shows_stripes(stripes(0.4 + np.pi / 2), target)[0]  # across
+    labyrinth = np.random.default_rng(1).uniform(size=(48, 48))
+    ok, coherence = shows_stripes(labyrinth, target)
+    assert not ok and coherence < 0.2
+    assert shows_stripes(labyrinth, (0.0, 0.2))[0]  # an isotropic target: no rule
+
+
 def test_anisotropic_family_lays_stripes_along_its_angle_and_auto_gates_on_coherence():
     """Fig. 5.13's rule on Turing's model: B diffusing along the polarity lays stripes
     along it; an isotropic target leaves the oriented families out of `auto`'s screen."""
