@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import shutil
 import sys
 import textwrap
@@ -245,7 +246,7 @@ def _descriptors(result) -> dict:
     shown = result.state.array("b" if exp.show == "melanin" else exp.show)
     d = mj.describe(shown, wrap=exp.phases[-1].boundary == "wrap")
     return {"pattern": d.pattern, "spots": d.spots, "holes": d.holes,
-            "wavelength": None if d.wavelength != d.wavelength else round(float(d.wavelength), 2),
+            "wavelength": round(float(d.wavelength), 2) if math.isfinite(d.wavelength) else None,
             "dark_fraction": round(float(d.dark_fraction), 4)}
 
 

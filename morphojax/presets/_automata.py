@@ -213,8 +213,8 @@ def _wvd_figure(name, figure, vary, values, k, seeded, description):
     def runner(seed, quick, out, frames):
         series = np.asarray(values[::10] if quick else values, float)
         size = 20 if quick else 30
-        fixed = WVD_SPECIES
-        rows = [(v, 6.0, 1.0, -0.2) if vary == "r_act" else (3.0, 6.0, v, -0.2) for v in series]
+        r_act, r_inh, w_act, w_inh = fixed = WVD_SPECIES
+        rows = [(v, r_inh, w_act, w_inh) if vary == "r_act" else (r_act, r_inh, v, w_inh) for v in series]
         # one denominator for the whole series, so runs of one neighbourhood share a compiled loop
         models = [mj.YoungCA([row, *[fixed] * (k - 1)], denominator=1000) for row in rows]
         key = jax.random.key(seed)
@@ -229,7 +229,7 @@ def _wvd_figure(name, figure, vary, values, k, seeded, description):
         chart = xy_chart({f"eps_{j}": (wvd0, eps[:, j]) for j in range(k)},
                          title=f"{figure}: eps vs WVD_0, L = {size}, K = {k}, {WVD_STEPS} updates",
                          x_label=f"WVD_0 from {wvd0.min():.0f} to {wvd0.max():.0f}", dots=True)
-        # one picture per distinct neighbourhood of species 0 (each step of a radius series)
+        # the first run of each distinct neighbourhood of species 0 (each step of a radius series)
         firsts = sorted({tuple(nb): i for i, nb in reversed(list(enumerate(neighbourhood)))}.values())
         shown = firsts if vary == "r_act" and len(firsts) <= 12 else []
         canvas = chart

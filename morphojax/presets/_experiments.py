@@ -216,8 +216,8 @@ for _method in FROG_METHODS:
     register(ExperimentPreset(f"frog-{_method}", f"the frog of Fig. 11 grown by {_method} interpolation instead of division",
                               "leopard paper Fig. 22", lambda quick, _m=_method: _frog(quick, _m)))
 register(ExperimentPreset(
-    "frog-interpolation", "the frog grown by matrix expansion, then by nearest, bilinear and bicubic interpolation: "
-    "without division noise the stripes split but no spots form", "leopard paper Fig. 22",
+    "frog-interpolation", "the frog grown by matrix expansion, then by nearest, bilinear and bicubic interpolation "
+    "(the paper: without division noise no spots form)", "leopard paper Fig. 22",
     members=("frog", *(f"frog-{m}" for m in FROG_METHODS)), row_labels=("frog",),
     col_labels=("matrix expansion", *FROG_METHODS)))
 
@@ -248,6 +248,9 @@ def leopard_row_weights(n: int = 30) -> np.ndarray:
     return w
 
 
+LEOPARD_DEVELOPMENT = 12000  # iterations of the paper's development phase (section 7)
+
+
 @registered(ExperimentPreset, "leopard", "leopard rosettes: definition, development and maintenance phases", "leopard paper Figs. 13-17")
 def _leopard(quick, development=None):
     """The leopard of Figs. 13-17; `development` shortens its development phase to that many
@@ -262,7 +265,7 @@ def _leopard(quick, development=None):
         initial = Initial("paper", start)
         sources = ()
     else:
-        start, n_def, n_dev, n_main = (130, 130), 220000, 12000, 10000
+        start, n_def, n_dev, n_main = (130, 130), 220000, LEOPARD_DEVELOPMENT, 10000
         initial = Initial("constant", start, params=(4.0, 4.0), names=("a", "b"))
         sources = (Source("b", 0.01, "center-row"),)
     if development is not None:
@@ -291,7 +294,6 @@ def _leopard(quick, development=None):
     )
 
 
-LEOPARD_DEVELOPMENT = 12000  # the paper's development phase (section 7)
 LEG_DEVELOPMENT = (10000, 9000, 8000, 7000, 6000, 5000)  # Fig. 20, top to bottom
 for _n in LEG_DEVELOPMENT:
     register(ExperimentPreset(f"leopard-development-{_n}", f"the leopard with its development phase cut to {_n:,} "
