@@ -423,7 +423,7 @@ def test_polarize_gradient_and_errors(x64):
     g = jax.grad(loss)(0.05)
     fd = (loss(0.05 + 1e-6) - loss(0.05 - 1e-6)) / 2e-6
     assert float(g) == pytest.approx(float(fd), rel=1e-5) and abs(float(g)) > 1e-8
-    with pytest.raises(ValueError, match="Polarize"):
+    with pytest.raises(ValueError, match="Polarize.reagent names species 2"):
         mj.simulate(mj.Bard(), mj.State.from_arrays([np.ones(shape)] * 2), 1, 0.1, domain=domain)
     with pytest.raises(ValueError, match="Polarize polarity follows"):
         mj.Lattice(polarity=mj.Polarize("c"), polarised=np.ones(shape))

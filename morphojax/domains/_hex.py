@@ -255,6 +255,8 @@ class HexLattice(AbstractDomain):
     def diffusion(self, carried, rates):
         n = carried.shape[0]
         _links.check_species(self.anisotropic, n, "HexLattice")
+        if self.follow is not None:
+            _links.check_species((self.follow,), n, "Polarize", "reagent")
         on_links = [self._on_links(i, rates[i]) for i in range(n)]
         op = None if all(on_links) else self._operator_padded(carried)
         shape = carried.shape[-2:]

@@ -119,7 +119,7 @@ class Lattice(AbstractDomain):
         n = carried.shape[0]
         _links.check_species(self.anisotropic, n, "Lattice")
         if self.follow is not None:
-            _links.check_species((self.follow,), n, "Polarize")
+            _links.check_species((self.follow,), n, "Polarize", "reagent")
         links = [self._on_links(i, rates[i]) for i in range(n)]
         lap = None
         if not all(links):  # scalar rates, pointwise maps: the stencil, as before the flux form

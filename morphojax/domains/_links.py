@@ -95,10 +95,10 @@ def polarity_fields(polarity, polarised, follow, who: str):
     return (*polarity_leaves(polarity, polarised, who), None)
 
 
-def check_species(anisotropic, n: int, who: str) -> None:
+def check_species(anisotropic, n: int, who: str, field: str = "anisotropic") -> None:
     """Raise a ValueError when an anisotropic species is beyond the model's `n` species."""
     if anisotropic and max(anisotropic) >= n:
-        raise ValueError(f"{who}.anisotropic names species {max(anisotropic)} (0-based) but the model has {n} "
+        raise ValueError(f"{who}.{field} names species {max(anisotropic)} (0-based) but the model has {n} "
                          f"species; name species by position: 0..{n - 1} or 'a'..'{LETTERS[n - 1]}'")
 
 
