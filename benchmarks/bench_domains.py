@@ -5,7 +5,8 @@ stencil (the reference), the thesis's Moore sum (`Lattice("moore")`), and the he
 lattice (`HexLattice`: the Laplacian and the neighbour sum on a torus, the Laplacian with
 no-flux), and the square lattice's link form: a diffusion map (`scale` as an (n, n) array)
 in the flux form and the pointwise form, and species b anisotropic with one polarity angle
-or one per cell (wrap; Moore with no-flux). Reports Mcell-steps/s (cells x steps / s) and each domain's speed as a ratio of
+or one per cell (wrap; Moore with no-flux) or following a's gradient (`Polarize`), and the
+scale set every step from a (`Modulated`). Reports Mcell-steps/s (cells x steps / s) and each domain's speed as a ratio of
 the nine-point step's timed in the same worker; every figure is the median over several
 fresh processes (see _harness.py). dt is the nine-point run's; every domain is stable at it.
 
@@ -38,8 +39,16 @@ DOMAINS = {  # name: constructor source (evaluated in the worker, after importin
     "square moore, b anisotropic, angle per cell (no-flux)": "mj.Lattice('moore', 'no-flux', anisotropic='b', "
                                                               "polarity=ANGLES)",
     "hex laplacian, b anisotropic, angle per cell (wrap)": "mj.HexLattice('wrap', anisotropic='b', polarity=ANGLES)",
+    # a polarity that follows a's gradient, recomputed every step (Polarize, eq. 4.10)
+    "square moore, b anisotropic, Polarize(a) (no-flux)": "mj.Lattice('moore', 'no-flux', anisotropic='b', "
+                                                          "polarity=mj.Polarize('a'))",
+    "hex sum, b anisotropic, Polarize(a) (no-flux)": "mj.HexLattice('no-flux', 'sum', anisotropic='b', "
+                                                     "polarity=mj.Polarize('a'))",
+    # the scale set every step from a's concentration (Modulated; a map that gives s everywhere)
+    "square nine-point, scale modulated by a (wrap)": "mj.Lattice('nine-point', 'wrap')",
 }
 MAPS = {"square nine-point, rate map, flux form (wrap)", "square nine-point, rate map, pointwise (wrap)"}
+MODULATED = {"square nine-point, scale modulated by a (wrap)"}
 
 
 def worker(n: int, steps: int) -> dict:
@@ -54,6 +63,8 @@ def worker(n: int, steps: int) -> dict:
     for name, source in DOMAINS.items():
         domain = eval(source, {"mj": mj, "ANGLES": angles})  # noqa: S307 (our own table above)
         model = mj.Turing(R, np.full((n, n), S) if name in MAPS else S)
+        if name in MODULATED:
+            model = mj.Modulated(model, mj.Modulation("scale", by="a", low=0.0, high=8.0, out_low=S, out_high=S))
         run = lambda: jax.block_until_ready(mj.simulate(model, state, steps=steps, dt=DT, domain=domain).fields)  # noqa: E731
         run()  # compile
         out[name] = n * n / (timeit(run, min_time=1.0) / steps) / 1e6

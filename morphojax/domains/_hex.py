@@ -59,11 +59,11 @@ def neighbour_sum(p, xp=jnp, links=None):
                            (up[..., 2:] * has_up + down[..., 2:] * has_down) * has_right)
 
 
-def hex_direction_factors(angle, polarised=None):
+def hex_direction_factors(cx, sy, polarised=None):
     """|d . p| / |d| for the three link axes of the odd-r layout (x along a row, y down the
-    rows): along the row (1, 0); "up-left/down-right" (1/2, sqrt(3)/2); "up-right/down-left"
-    (-1/2, sqrt(3)/2). `polarised` (1/0 or None = all) gives 1 to unpolarised cells."""
-    cx, sy = jnp.cos(angle), jnp.sin(angle)
+    rows) of cells with unit polarity (cx, sy): along the row (1, 0); "up-left/down-right"
+    (1/2, sqrt(3)/2); "up-right/down-left" (-1/2, sqrt(3)/2). `polarised` (1/0 or None = all)
+    gives 1 to unpolarised cells."""
     h = math.sqrt(3.0) / 2.0
     factors = (jnp.abs(cx), jnp.abs(0.5 * cx + h * sy), jnp.abs(h * sy - 0.5 * cx))
     if polarised is None:
@@ -103,7 +103,7 @@ def hex_link_sum(p, rates, mask=None):
 
 
 def hex_gradient_leaves(p, mask=None):
-    """(angles, polarised mask) along the local gradient of a ghost-padded odd-r reagent
+    """(cos, sin, polarised) of the polarity along the local gradient of a ghost-padded odd-r reagent
     `p` (rows + 2, cols + 2): p = sum_j (R_j - R) d_j over the six links (thesis eq. 4.10;
     unit links), `mask` dropping those that leave a no-flux lattice; a cell where p = 0 is
     unpolarised."""
@@ -124,9 +124,7 @@ def hex_gradient_leaves(p, mask=None):
         down_left, down_right = down_left * has_down * to_left, down_right * has_down * to_right
     px = right - left + 0.5 * (up_right - up_left + down_right - down_left)
     py = ROW_HEIGHT * (down_left + down_right - up_left - up_right)
-    zero = (px == 0) & (py == 0)
-    angle = jnp.arctan2(jnp.where(zero, 0.0, py), jnp.where(zero, 1.0, px))
-    return angle, (~zero).astype(p.dtype)
+    return _links.unit_gradient(px, py)
 
 
 def links(shape):
@@ -264,7 +262,7 @@ class HexLattice(AbstractDomain):
             jnp.asarray(v, carried.dtype) for v in links((shape[0] - 2, shape[1] - 2)))
         # a polarity that follows a reagent: from the fields this step starts from
         polarity = hex_gradient_leaves(carried[self.follow], mask) if self.follow is not None else (
-            self.polarity, self.polarised)
+            _links.unit_polarity(self.polarity, self.polarised) if self.polarity is not None else None)
         return [self._link_term(carried[i], rates[i], i, polarity, mask) if on_links[i] else rates[i] * op[i]
                 for i in range(n)]
 
@@ -281,17 +279,17 @@ class HexLattice(AbstractDomain):
 
     def _link_term(self, p, rate, i: int, polarity, mask):
         """sum_j w D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8), given
-        the cells' (angles, polarised mask) and the no-flux link mask: each link's exchange
-        is computed from both ends with the same operands (the harmonic mean is symmetric in
-        them), so what one cell gains its neighbour loses."""
+        the cells' unit polarity (cos, sin, polarised mask) or None and the no-flux link
+        mask: each link's exchange is computed from both ends with the same operands (the
+        harmonic mean is symmetric in them), so what one cell gains its neighbour loses."""
         shape = (p.shape[-2] - 2, p.shape[-1] - 2)
         d = jnp.pad(jnp.broadcast_to(jnp.asarray(rate, p.dtype), shape), 1, mode="wrap")
-        angle, polarised = polarity
-        if i in self.anisotropic and angle is not None:
-            if angle.ndim == 2 and tuple(angle.shape) != shape:
-                raise ValueError(f"HexLattice.polarity has shape {tuple(angle.shape)}; the lattice is {shape}")
-            factors = hex_direction_factors(angle, polarised)
-            if angle.ndim == 2:
+        if i in self.anisotropic and polarity is not None:
+            cx = polarity[0]
+            if cx.ndim == 2 and tuple(cx.shape) != shape:
+                raise ValueError(f"HexLattice.polarity has shape {tuple(cx.shape)}; the lattice is {shape}")
+            factors = hex_direction_factors(*polarity)
+            if cx.ndim == 2:
                 factors = tuple(jnp.pad(f, 1, mode="wrap") for f in factors)
             rates = tuple(d * f for f in factors)
         else:

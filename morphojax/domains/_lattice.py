@@ -126,7 +126,7 @@ class Lattice(AbstractDomain):
             lap = _stencils.laplacian_padded(carried, self.stencil)
         # a polarity that follows a reagent: from the fields this step starts from
         polarity = _links.gradient_leaves(carried[self.follow]) if self.follow is not None else (
-            self.polarity, self.polarised)
+            _links.unit_polarity(self.polarity, self.polarised) if self.polarity is not None else None)
         return [self._link_term(carried[i], rates[i], i, polarity) if links[i] else rates[i] * lap[i]
                 for i in range(n)]
 
@@ -138,16 +138,16 @@ class Lattice(AbstractDomain):
 
     def _link_term(self, p, rate, i: int, polarity):
         """sum_j w_ij D_ij (u_j - u_i) for one species' padded field `p` (eqs. 4.7-4.8),
-        given the (angles, polarised mask) of the cells."""
+        given the cells' unit polarity (cos, sin, polarised mask), or None."""
         shape = (p.shape[-2] - 2, p.shape[-1] - 2)
         rate = jnp.broadcast_to(jnp.asarray(rate, p.dtype), shape)
         padded = _stencils.pad(rate, self.boundary)
-        angle, polarised = polarity
-        if i in self.anisotropic and angle is not None:
-            if angle.ndim == 2 and tuple(angle.shape) != shape:
-                raise ValueError(f"Lattice.polarity has shape {tuple(angle.shape)}; the lattice is {shape}")
-            factors = _links.direction_factors(angle, polarised)
-            if angle.ndim == 2 or self.boundary != "wrap":
+        if i in self.anisotropic and polarity is not None:
+            cx = polarity[0]
+            if cx.ndim == 2 and tuple(cx.shape) != shape:
+                raise ValueError(f"Lattice.polarity has shape {tuple(cx.shape)}; the lattice is {shape}")
+            factors = _links.direction_factors(*polarity)
+            if cx.ndim == 2 or self.boundary != "wrap":
                 factors = tuple(jnp.broadcast_to(f, shape) for f in factors)
             factors = _links.pad_factors(factors, self.boundary, shape)
             rates = tuple(padded * f for f in factors)
