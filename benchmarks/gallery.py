@@ -59,9 +59,7 @@ def main():
         res = mj.run_experiment(preset.experiment(args.quick), seed=0)
         seconds = time.perf_counter() - t0
         res.image(scale=2 if max(res.state.shape) < 200 else 1).save(out / f"{name}.png")
-        exp = res.experiment
-        shown = res.state.array("b" if exp.show == "melanin" else exp.show)
-        d = mj.describe(shown, wrap=exp.phases[-1].boundary == "wrap")
+        d = res.describe()
         rows.append({"preset": name, "figure": preset.figure, "size": list(res.state.shape), "pattern": d.pattern,
                      "wavelength": d.wavelength, "spots": d.spots, "spot_area": d.spot_area, "holes": d.holes,
                      "dark_fraction": d.dark_fraction, "seconds": seconds})

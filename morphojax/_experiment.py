@@ -227,6 +227,15 @@ class Result:
         """Write the result `.npz` (final species cropped to the active lattice, state, metadata); returns the path."""
         return save_npz(path, self.state, self.metadata)
 
+    def describe(self):
+        """`describe` of the final pattern the experiment shows (B for the melanin texture),
+        periodic when the last phase wraps: its class, spots, holes, wavelength."""
+        from ._descriptors import describe
+
+        exp = self.experiment
+        shown = self.state.array("b" if exp.show == "melanin" else exp.show)
+        return describe(shown, wrap=exp.phases[-1].boundary == "wrap")
+
 
 def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: bool = False,
                    progress: bool = False, checkpoint_path=None, checkpoint_every: int | None = None, resume=None,

@@ -14,9 +14,10 @@ on the chunking or on a member's place in its group.
 The layout applies where every member's step is pointwise in its parameters and free of
 randomness: a square lattice (the sweep's), a built-in model whose parameters are scalars or
 per-species vectors (no parameter maps; a user's `Reaction` function is promised plain
-(species, rows, cols) arrays, and a `Modulated` model makes maps from the state), no growth, no sources (`lanes_apply`). A group checks its
-members for non-finite values where a lone run does (`default_chunk`), but only flags them:
-the sweep re-runs a flagged group member by member to find the exact first bad step.
+(species, rows, cols) arrays, and a `Modulated` model makes maps from the state), no growth,
+no sources (`lanes_apply`). A group checks its members for non-finite values where a lone
+run does (`default_chunk`), but only flags them: the sweep re-runs a flagged group member by
+member to find the exact first bad step.
 """
 
 from __future__ import annotations

@@ -241,10 +241,8 @@ def _run_figure(item, args, out: Path):
 
 
 def _descriptors(result) -> dict:
-    """The final pattern of the shown species (B for the melanin texture), as JSON numbers."""
-    exp = result.experiment
-    shown = result.state.array("b" if exp.show == "melanin" else exp.show)
-    d = mj.describe(shown, wrap=exp.phases[-1].boundary == "wrap")
+    """The final pattern of the shown species (`Result.describe`), as JSON numbers."""
+    d = result.describe()
     return {"pattern": d.pattern, "spots": d.spots, "holes": d.holes,
             "wavelength": round(float(d.wavelength), 2) if math.isfinite(d.wavelength) else None,
             "dark_fraction": round(float(d.dark_fraction), 4)}

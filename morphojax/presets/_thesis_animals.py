@@ -34,9 +34,6 @@ from ..domains import Lattice
 from ..models import Bard, Composite, Modulated, Modulation, Morphogen
 from ._registry import ExperimentPreset, registered
 
-THESIS_START = ((2.0, 6.0), (2.0, 6.0))  # conc 4 dev 2
-
-
 def thesis_rows(values, shape) -> np.ndarray:
     """A per-cell array in the thesis's row-major order (row 0 at the bottom of its
     pictures) laid out on our lattice (row 0 at the top)."""
@@ -64,7 +61,7 @@ def _frog(quick):
     polarity = thesis_rows(_cells(shape, [((0, half), np.nan)], np.pi / 2), shape)
     domain = Lattice("moore", "no-flux", anisotropic=("b",), polarity=polarity)
     return Experiment(
-        name="thesis-fig7.16", initial=Initial("uniform", shape, params=THESIS_START, names=("a", "b")),
+        name="thesis-fig7.16", initial=Initial("thesis", shape),
         phases=(Phase(Bard(alpha=16.0, beta=12.0, sp=0.008, da=du, db=dv, upper=(6.3, np.inf)), steps=steps, dt=0.5,
                       frames=4, name="saturated", domain=domain),),
         description=f"thesis Listing A.16 on {shape[0]}x{shape[1]}: U <= 6.3, V anisotropic along polarity 90 deg "
@@ -93,7 +90,7 @@ def _eel(quick):
         Modulated(Composite((bard, Morphogen(diffusion=p_rate)), species=("a", "b", "p")), held), steps=steps, dt=0.3, frames=2, name=name,
         domain=domain, **kw)
     return Experiment(
-        name="thesis-fig7.18", initial=Initial("uniform", shape, params=THESIS_START, names=("a", "b")),
+        name="thesis-fig7.18", initial=Initial("thesis", shape),
         phases=(phase(0.01, first, "gradient", add_species=(("p", p0),)), phase(0.0, second, "held")),
         description=f"thesis Listing A.17 on {shape[0]}x{shape[1]}: U, V <= 6.5, Du 0.40 / 0.20 / 0.05 by body part, "
                     f"Dv 0.01, scale 0.03, dt 0.3; P from 8 on two cells diffusing at 0.01 for {first:,} iterations, "
