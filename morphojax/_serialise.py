@@ -34,7 +34,6 @@ from ._state import State
 MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement, FitzHughNagumo, GiererMeinhardt,
                                             Schnakenberg, Brusselator, ThesisReinforcement, RuleReinforcement,
                                             Morphogen)}
-MODULATION_FIELDS = ("low", "high", "out_low", "out_high")
 
 
 def to_jsonable(value):
@@ -79,7 +78,8 @@ def model_to_dict(model: AbstractModel) -> dict:
     if isinstance(model, Modulated):
         return {"type": "Modulated", "model": model_to_dict(model.model),
                 "modulations": [{"parameter": m.parameter, "by": m.by,
-                                 **{k: to_jsonable(getattr(m, k)) for k in MODULATION_FIELDS}} for m in model.modulations]}
+                                 **{k: to_jsonable(getattr(m, k)) for k in Modulation.FIELDS}}
+                                for m in model.modulations]}
     params = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
     if isinstance(model, Reaction):  # its function is code: a description stands in for it
         params["fn"] = model.fn.describe()
@@ -92,7 +92,7 @@ def model_from_dict(data: dict) -> AbstractModel:
         return Composite([model_from_dict(p) for p in data["parts"]], species=data.get("species"))
     if kind == "Modulated":
         return Modulated(model_from_dict(data["model"]), [
-            Modulation(m["parameter"], m["by"], *(from_jsonable(m[k]) for k in MODULATION_FIELDS))
+            Modulation(m["parameter"], m["by"], *(from_jsonable(m[k]) for k in Modulation.FIELDS))
             for m in data["modulations"]])
     if kind == "Reaction":
         saved = data.get("params", {}).get("fn", {})
@@ -101,7 +101,8 @@ def model_from_dict(data: dict) -> AbstractModel:
             "code, not data, so the file alone cannot rebuild it: build mj.Reaction(fn, params, diffusion, "
             "species=...) with that function and apply the saved parameters with .replace(...)")
     if kind not in MODEL_TYPES:
-        raise ValueError(f"unknown model type {kind!r} in saved data; allowed: {', '.join(MODEL_TYPES)}, Composite, Modulated")
+        raise ValueError(f"unknown model type {kind!r} in saved data; allowed: {', '.join(MODEL_TYPES)}, "
+                         "Composite, Modulated")
     params = from_jsonable(dict(data["params"]))
     for lim in ("lower", "upper"):
         if lim in params:

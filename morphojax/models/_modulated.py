@@ -23,7 +23,7 @@ modulated limit takes its map's values as the run goes.
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import ClassVar, Sequence
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -39,6 +39,7 @@ class Modulation(eqx.Module):
     [out_low, out_high] (low != high; out_low > out_high maps a rising reagent to a
     falling parameter)."""
 
+    FIELDS: ClassVar[tuple[str, ...]] = ("low", "high", "out_low", "out_high")  # its numbers, as in files
     parameter: str = eqx.field(static=True)
     by: str = eqx.field(static=True)
     low: Array
@@ -69,6 +70,9 @@ class Modulation(eqx.Module):
     def largest(self) -> Array:
         """The largest value the map gives."""
         return jnp.maximum(self.out_low, self.out_high)
+
+
+PREFIX = "modulation"  # a modulation's numbers are parameters "modulation{i}.low", ...
 
 
 class Modulated(AbstractModel):
@@ -134,17 +138,17 @@ class Modulated(AbstractModel):
     def parameters(self):
         out = dict(self.model.parameters())
         for i, m in enumerate(self.modulations):
-            out.update({f"modulation{i}.{k}": getattr(m, k) for k in ("low", "high", "out_low", "out_high")})
+            out.update({f"{PREFIX}{i}.{k}": getattr(m, k) for k in Modulation.FIELDS})
         return out
 
     def replace(self, **changes):
-        mods = [dict(low=m.low, high=m.high, out_low=m.out_low, out_high=m.out_high) for m in self.modulations]
+        mods = [{k: getattr(m, k) for k in Modulation.FIELDS} for m in self.modulations]
         inner = {}
         for key, value in changes.items():
             head, _, field = key.partition(".")
-            if head.startswith("modulation") and head[10:].isdigit() and int(head[10:]) < len(mods) \
-                    and field in mods[0]:
-                mods[int(head[10:])][field] = value
+            index = head[len(PREFIX):] if head.startswith(PREFIX) else ""
+            if index.isdigit() and int(index) < len(mods) and field in Modulation.FIELDS:
+                mods[int(index)][field] = value
             else:
                 inner[key] = value
         model = self.model.replace(**inner) if inner else self.model
