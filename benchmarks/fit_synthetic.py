@@ -13,7 +13,8 @@ never uses; `fitting.fit` then recovers the parameters, with the family given an
 - with --auto, the family `auto` picked;
 - fit time on this machine, and the load average when it ran.
 
-    python benchmarks/fit_synthetic.py [--cases spots gray-scott ...] [--auto] [--repeats 3]
+    python benchmarks/fit_synthetic.py [--cases spots gray-scott ...] [--auto | --auto-only]
+        [--repeats 3] [--repeat-from 1] [--out F.md]
 """
 
 from __future__ import annotations
@@ -77,42 +78,55 @@ def run_case(name, shape=(64, 64), auto=False, repeat=0):
             "ratio_to_floor": fit_d / floor, "seconds": seconds, "load": os.getloadavg()[0], "loss": result.loss}
 
 
-def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--cases", nargs="*", default=list(CASES))
-    p.add_argument("--auto", action="store_true", help="also fit every case with model='auto'")
-    p.add_argument("--repeats", type=int, default=1, help="target seeds per case (the coverage study)")
-    p.add_argument("--shape", type=int, nargs=2, default=(64, 64))
-    p.add_argument("--out", type=Path, default=HERE / "results" / "fit_synthetic.md")
-    args = p.parse_args()
-    rows = []
-    for name in args.cases:
-        for repeat in range(args.repeats):
-            for auto in ([False, True] if args.auto else [False]):
-                row = run_case(name, tuple(args.shape), auto, repeat)
-                rows.append(row)
-                print(json.dumps(row), file=sys.stderr)
-    lines = ["| case | auto | picked | true | fitted (95% interval) | undetermined | distance / floor | time (s) |",
-             "|---|---|---|---|---|---|---|---|"]
+def summary(rows) -> str:
+    """The markdown table and the goals' figures of a run's rows."""
+    lines = ["| case | target seed | auto | picked | true | fitted (95% interval) | undetermined | distance / floor "
+             "| time (s) |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         true = ", ".join(f"{k} {v:g}" for k, v in r["true"].items())
         fitted = ", ".join(f"{k} {v:.3g} ({r['intervals'][k][0]:.3g}-{r['intervals'][k][1]:.3g})"
                            if k in r["intervals"] else f"{k} {v:.3g}" for k, v in r["fitted"].items())
-        lines.append(f"| {r['case']} | {'yes' if r['auto'] else 'no'} | {r['picked']} | {true} | {fitted} | "
+        lines.append(f"| {r['case']} | {10_000 + r['repeat']} | {'yes' if r['auto'] else 'no'} | {r['picked']} | "
+                     f"{true} | {fitted} | "
                      f"{', '.join(r['undetermined']) or '-'} | {r['fit_distance']:.1f} / {r['noise_floor']:.1f} = "
                      f"{r['ratio_to_floor']:.2f}x | {r['seconds']:.0f} (load {r['load']:.1f}) |")
     cov = [c for r in rows for c in r["covered"].values()]
     ratios = sorted(r["ratio_to_floor"] for r in rows)
     lines.append("")
+    times = {mode: [r["seconds"] for r in rows if r["auto"] == (mode == "auto")] for mode in ("given", "auto")}
     lines.append(f"Median distance over the floor: {np.median(ratios):.2f}x; median time "
-                 f"{np.median([r['seconds'] for r in rows if not r['auto']]):.0f} s with the family given"
-                 + (f", {np.median([r['seconds'] for r in rows if r['auto']]):.0f} s with auto"
-                    if any(r["auto"] for r in rows) else ""))
+                 + ", ".join(f"{np.median(t):.0f} s " + ("with auto" if mode == "auto" else "with the family given")
+                             for mode, t in times.items() if t))
     auto_rows = [r for r in rows if r["auto"]]
     lines.append(f"Coverage of the 95% intervals: {sum(cov)}/{len(cov)}"
                  + (f"; auto picked the true family in {sum(r['picked'] == r['family'] for r in auto_rows)}/"
                     f"{len(auto_rows)} cases" if auto_rows else ""))
-    table = "\n".join(lines)
+    return "\n".join(lines)
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--cases", nargs="*", default=list(CASES))
+    p.add_argument("--auto", action="store_true", help="also fit every case with model='auto'")
+    p.add_argument("--repeats", type=int, default=1, help="target seeds per case (the coverage study)")
+    p.add_argument("--repeat-from", type=int, default=0,
+                   help="the first target seed's index (run further seeds of an earlier study)")
+    p.add_argument("--auto-only", action="store_true", help="fit every case with model='auto' only")
+    p.add_argument("--from-json", type=Path, nargs="*", help="no fits: the tables of these runs' JSON files")
+    p.add_argument("--shape", type=int, nargs=2, default=(64, 64))
+    p.add_argument("--out", type=Path, default=HERE / "results" / "fit_synthetic.md")
+    args = p.parse_args()
+    if args.from_json:  # rebuild the tables of earlier runs, e.g. several joined
+        rows = [r for path in args.from_json for r in json.loads(path.read_text())]
+    else:
+        rows = []
+        for name in args.cases:
+            for repeat in range(args.repeat_from, args.repeat_from + args.repeats):
+                for auto in [True] if args.auto_only else [False, True] if args.auto else [False]:
+                    row = run_case(name, tuple(args.shape), auto, repeat)
+                    rows.append(row)
+                    print(json.dumps(row), file=sys.stderr)
+    table = summary(rows)
     print(table)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(table + "\n")

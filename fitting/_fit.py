@@ -413,8 +413,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         finals[0] = (best_loss, *finals[0][1:3], best_loss)
     floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
     singles, sample = _seed_run(sim, space, stats, theta_best, floor_keys)
-    floor = float(np.mean([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats, noise))
-                           for i in range(len(floor_keys))]))
+    floor_losses = np.array([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats,
+                                            noise)) for i in range(len(floor_keys))])
+    floor = float(np.mean(floor_losses))
     sample = np.asarray(sample)
     from ._report import region_stats
 
@@ -429,7 +430,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         rec.stage = "intervals"
         inflate = best_loss / floor if floor > 0 and np.isfinite(best_loss) else 1.0
         ivals, undetermined = interval_report(sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate,
-                                              seed=seed, floor=floor)
+                                              seed=seed, floor=floor, floor_losses=floor_losses)
         timings["intervals"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]

@@ -540,6 +540,25 @@ def test_likelihood_region_follows_the_loss_beyond_a_narrow_start():
     assert (reach <= half + 1e-12).all() and (reach >= 0.75 * half).all()
 
 
+def test_sample_quantile_matches_a_scaled_chi_square():
+    """The acceptance threshold is the 95% quantile of a sample's loss: losses drawn from
+    2.5 x chi-square(3) give their own quantile back (their spread sets 3 degrees of freedom,
+    not the 10 groups); without losses, one degree per group; the degrees stay in [1, groups]."""
+    from scipy.stats import chi2
+
+    from fitting._uncertainty import sample_quantile
+
+    losses = 2.5 * np.random.default_rng(0).chisquare(3, 20_000)
+    floor = losses.mean()
+    assert sample_quantile(floor, 10, losses) == pytest.approx(2.5 * chi2.ppf(0.95, 3), rel=0.03)
+    assert sample_quantile(floor, 10, losses) == pytest.approx(np.quantile(losses, 0.95), rel=0.03)
+    assert sample_quantile(4.0, 10) == pytest.approx(4.0 * chi2.ppf(0.95, 10) / 10, rel=1e-12)
+    tight = np.full(8, 4.0) + np.linspace(-1e-3, 1e-3, 8)  # no spread: capped at one per group
+    assert sample_quantile(4.0, 10, tight) == pytest.approx(sample_quantile(4.0, 10), rel=1e-12)
+    wide = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 32.0])  # mean 4, huge spread: 1 degree
+    assert sample_quantile(4.0, 10, wide) == pytest.approx(4.0 * chi2.ppf(0.95, 1), rel=1e-12)
+
+
 def test_fit_reports_intervals(small_fit):
     truth, _, result = small_fit
     for name, value in result.params.items():
