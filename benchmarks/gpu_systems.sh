@@ -5,13 +5,17 @@
 #
 #     bash benchmarks/gpu_systems.sh
 set -u
-OUT=${OUT:-gpu_out}; mkdir -p "$OUT"
+OUT=${OUT:-gpu_out}; mkdir -p "$OUT"; OUT=$(cd "$OUT" && pwd)  # absolute: the runs start in benchmarks/
 export PYTHONPATH=$PWD:$PWD/tests:$PWD/benchmarks PYTHONUNBUFFERED=1
 { nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
   python3 -c "import jax; print(jax.__version__, jax.devices())"; nproc; } > "$OUT/env.log" 2>&1
 cd benchmarks
-timeout 120 python3 bench_mesh.py --repeats 2 --subdivisions 5 6 7 > "$OUT/mesh.log" 2>&1
-timeout 100 python3 bench_potts.py --repeats 2 > "$OUT/potts.log" 2>&1
-timeout 110 python3 bench_domains.py --repeats 1 --sizes 250 1000 > "$OUT/domains.log" 2>&1
-timeout 150 python3 bench_cells.py --repeats 1 --only scaling moray > "$OUT/cells.log" 2>&1
-echo "exit codes: done" >> "$OUT/env.log"
+run() {  # run NAME TIMEOUT SCRIPT ARGS...: the log in $OUT/NAME.log, the exit status in env.log
+  local name=$1 limit=$2; shift 2
+  timeout "$limit" python3 "$@" > "$OUT/$name.log" 2>&1
+  echo "$name: exit $?" >> "$OUT/env.log"
+}
+run mesh 120 bench_mesh.py --repeats 2 --subdivisions 5 6 7
+run potts 100 bench_potts.py --repeats 2
+run domains 110 bench_domains.py --repeats 1 --sizes 250 1000
+run cells 150 bench_cells.py --repeats 1 --only scaling moray

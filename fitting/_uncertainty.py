@@ -38,9 +38,8 @@ on the synthetic spots target the best loss was 8.2, below the 12.5 that a sampl
 its parameters' mean on average (10 groups x (1 + 1 / 4 seeds)). The groups' statistics
 move together, so their losses spread like fewer than one chi-square degree of freedom per
 group: on a second spots target (seed 10,001) the floor was 5.6 and the truth scored 11.3,
-above the 9.7 that one degree per group allowed. Each
-parameter's interval spans the Laplace interval and every accepted point: a projection of
-the joint region, so conservative.
+above the 9.7 that one degree per group allowed. Each parameter's interval spans the Laplace
+interval and every accepted point: a projection of the joint region, so conservative.
 
 A parameter is *undetermined* when its 95% interval spans more than half its bounds (in
 unit coordinates), or when the information matrix is singular along it (a flat direction,
