@@ -8,7 +8,8 @@ in the flux form and the pointwise form, and species b anisotropic with one pola
 or one per cell (wrap; Moore with no-flux) or following a's gradient (`Polarize`), and the
 scale set every step from a (`Modulated`). Reports Mcell-steps/s (cells x steps / s) and
 each domain's speed as a ratio of the nine-point step's timed in the same worker; every
-figure is the median over several fresh processes (see _harness.py). dt is the nine-point run's; every domain is stable at it.
+figure is the median over several fresh processes (see _harness.py). dt is the nine-point
+run's; every domain is stable at it.
 
     python benchmarks/bench_domains.py [--repeats 5] [--sizes 250]
 """

@@ -261,8 +261,8 @@ class HexLattice(AbstractDomain):
         mask = None if self.boundary == "wrap" else tuple(
             jnp.asarray(v, carried.dtype) for v in links((shape[0] - 2, shape[1] - 2)))
         # a polarity that follows a reagent: from the fields this step starts from
-        polarity = hex_gradient_leaves(carried[self.follow], mask) if self.follow is not None else (
-            _links.unit_polarity(self.polarity, self.polarised) if self.polarity is not None else None)
+        polarity = (hex_gradient_leaves(carried[self.follow], mask) if self.follow is not None else
+                    _links.unit_polarity(self.polarity, self.polarised))
         return [self._link_term(carried[i], rates[i], i, polarity, mask) if on_links[i] else rates[i] * op[i]
                 for i in range(n)]
 

@@ -125,8 +125,8 @@ class Lattice(AbstractDomain):
         if not all(links):  # scalar rates, pointwise maps: the stencil, as before the flux form
             lap = _stencils.laplacian_padded(carried, self.stencil)
         # a polarity that follows a reagent: from the fields this step starts from
-        polarity = _links.gradient_leaves(carried[self.follow]) if self.follow is not None else (
-            _links.unit_polarity(self.polarity, self.polarised) if self.polarity is not None else None)
+        polarity = (_links.gradient_leaves(carried[self.follow]) if self.follow is not None else
+                    _links.unit_polarity(self.polarity, self.polarised))
         return [self._link_term(carried[i], rates[i], i, polarity) if links[i] else rates[i] * lap[i]
                 for i in range(n)]
 

@@ -117,8 +117,9 @@ def harmonic_mean(a, b):
 
 def unit_polarity(angle, polarised=None):
     """A polarity given by angles (radians from +x = along a row toward increasing column,
-    positive toward increasing row) as (cos, sin, polarised): what the link factors take."""
-    return jnp.cos(angle), jnp.sin(angle), polarised
+    positive toward increasing row) as (cos, sin, polarised): what the link factors take;
+    None (no polarity) stays None."""
+    return None if angle is None else (jnp.cos(angle), jnp.sin(angle), polarised)
 
 
 def direction_factors(cx, sy, polarised=None):

@@ -34,6 +34,7 @@ from ..domains import Lattice
 from ..models import Bard, Composite, Modulated, Modulation, Morphogen
 from ._registry import ExperimentPreset, registered
 
+
 def thesis_rows(values, shape) -> np.ndarray:
     """A per-cell array in the thesis's row-major order (row 0 at the bottom of its
     pictures) laid out on our lattice (row 0 at the top)."""
