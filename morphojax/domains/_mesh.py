@@ -16,9 +16,9 @@ mass-weighted total sum_i M_i u_i.
 
 The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
 as a padded table (vertices, max degree) of indices with their weights (zero on padding)
-and the inverse masses. Applying it in JAX is one gather per column of the table and a
-sum, no scatter, fused with the reaction. Stability: forward Euler on pure diffusion is
-stable while dt * D * rho <= 2, rho the largest eigenvalue of -L (L is negative
+and the inverse masses. Applying it in JAX (`_mesh_operator`) is one gather per column of
+the table and a sum, no scatter, fused with the reaction. Stability: forward Euler on
+pure diffusion is stable while dt * D * rho <= 2, rho the largest eigenvalue of -L (L is negative
 semi-definite for any mesh: -u^T M L u is the Dirichlet energy of the linear interpolant);
 rho is computed at construction by Lanczos iterations (scipy's eigsh) on the symmetric form
 M^-1/2 (D - W) M^-1/2, times 1.01 (the iterations approach it from below), and never above
@@ -45,6 +45,7 @@ import numpy as np
 
 from .._checks import check_choice
 from ._base import AbstractDomain
+from ._mesh_operator import apply_operator
 from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
@@ -366,14 +367,8 @@ class Mesh(AbstractDomain):
         if self.directional is not None:  # the tensor along t t^T + across (I - t t^T)
             w = self.across * w + (self.along - self.across) * self.directional
         w = w.astype(x.dtype) if jnp.issubdtype(x.dtype, jnp.floating) else w
-        # one 1D gather per neighbour slot, accumulated (padding has w = 0): XLA:CPU runs
-        # these as fused loops, while one (V, K) gather runs element by element, about 20x
-        # slower (benchmarks/results/bench_mesh.md); the indices were checked at construction
-        acc = jnp.zeros_like(x)
-        for k in range(self.neighbours.shape[1]):
-            neighbour = x.at[..., self.neighbours[:, k]].get(mode="promise_in_bounds")
-            acc = acc + w[:, k] * (neighbour - x)
-        return acc * self.inverse_mass.astype(w.dtype)
+        # the indices were checked at construction, so the gathers may promise to be in bounds
+        return apply_operator(x, w, self.neighbours, self.inverse_mass.astype(w.dtype))
 
     def carry(self, fields, size, dynamic):
         if dynamic:
