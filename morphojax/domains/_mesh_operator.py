@@ -40,18 +40,20 @@ def gathered_apart(x, weights, neighbours, inverse_mass):
     """L x over the last axis of x (..., V), one (K, V) gather per pair of species."""
     if x.ndim > 2:  # leading batch axes
         return jax.vmap(gathered_apart, in_axes=(0, None, None, None))(x, weights, neighbours, inverse_mass)
-    table = neighbours.T  # (K, V): gathered rows are contiguous
-    rows = [x] if x.ndim == 1 else list(x)
-    out = []
-    while rows:
-        if len(rows) > 1 and x.dtype in (jnp.float32, jnp.float64):  # two species per load, as u + i v
-            u, v = rows.pop(0), rows.pop(0)
-            both = jax.lax.complex(u, v).at[table].get(mode="promise_in_bounds")
-            out += [_neighbour_sum(jnp.real(both), u, weights), _neighbour_sum(jnp.imag(both), v, weights)]
-        else:
-            u = rows.pop(0)
-            out.append(_neighbour_sum(u.at[table].get(mode="promise_in_bounds"), u, weights))
+    species = [x] if x.ndim == 1 else list(x)
+    width = 2 if x.dtype in (jnp.float32, jnp.float64) else 1  # the dtypes with a complex counterpart
+    table = neighbours.T  # (K, V): each slot's gathered values are contiguous
+    gathered = [g for i in range(0, len(species), width) for g in _read_neighbours(species[i: i + width], table)]
+    out = [_neighbour_sum(g, s, weights) for g, s in zip(gathered, species)]
     return (out[0] if x.ndim == 1 else jnp.stack(out)) * inverse_mass
+
+
+def _read_neighbours(group, table):
+    """The neighbours' values (K, V) of one species, or of two read together as u + i v."""
+    if len(group) == 1:
+        return [group[0].at[table].get(mode="promise_in_bounds")]
+    both = jax.lax.complex(*group).at[table].get(mode="promise_in_bounds")
+    return [jnp.real(both), jnp.imag(both)]
 
 
 def _neighbour_sum(gathered, x, weights):
