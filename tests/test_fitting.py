@@ -559,6 +559,19 @@ def test_sample_quantile_matches_a_scaled_chi_square():
     assert sample_quantile(4.0, 10, wide) == pytest.approx(4.0 * chi2.ppf(0.95, 1), rel=1e-12)
 
 
+@pytest.mark.parametrize("dof", [3, 8])
+def test_sample_quantile_from_eight_losses_is_a_calibrated_prediction(dof):
+    """From eight losses (what a fit measures its floor from), a ninth loss of the same
+    distribution exceeds the threshold about 5% of the time: at most 7.5% (the plug-in
+    quantile, without the prediction's wider variance, is exceeded 10.1% and 7.8% of the time
+    on these draws)."""
+    from fitting._uncertainty import sample_quantile
+
+    draws = np.random.default_rng(dof).chisquare(dof, (3000, 9))
+    exceeded = [d[8] > sample_quantile(d[:8].mean(), 12, d[:8]) for d in draws]
+    assert 0.03 <= np.mean(exceeded) <= 0.075
+
+
 def test_fit_reports_intervals(small_fit):
     truth, _, result = small_fit
     for name, value in result.params.items():
