@@ -50,10 +50,10 @@ def test_operator_matches_oracle(small):
         np.testing.assert_allclose(got, ref, rtol=2e-5, atol=2e-5 * np.abs(ref).max())
 
 
-
 def test_both_forms_of_the_operator_agree_on_every_shape(small):
-    """The CPU form (one (K, V) gather per species) and the fused form (one gather per slot)
-    give the same numbers for one field, species, and batches of species, also anisotropic."""
+    """The CPU form (one (K, V) gather per pair of species) and the fused form (one gather
+    per slot) give the same numbers for one field, species, and batches of species, also
+    anisotropic, and the same gradients."""
     from morphojax.domains._mesh_operator import gathered_apart, gathered_fused
 
     mesh = mj.Mesh(small.vertices, small.faces, direction=[0.0, 0.0, 1.0], along=2.0, across=0.5)
@@ -70,6 +70,7 @@ def test_both_forms_of_the_operator_agree_on_every_shape(small):
         grads = [np.asarray(jax.grad(lambda x, f=f: jnp.sum(jnp.sin(f(x, w, mesh.neighbours, mesh.inverse_mass))))(x))
                  for f in (gathered_fused, gathered_apart)]
         np.testing.assert_allclose(grads[1], grads[0], rtol=1e-5, atol=1e-5 * np.abs(grads[0]).max())
+
 
 def test_sphere_spectrum(sphere):
     # the unit sphere's Laplace-Beltrami eigenvalues l (l + 1): 0, 2 (x3), 6 (x5)
