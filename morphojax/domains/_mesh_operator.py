@@ -29,11 +29,8 @@ import jax.numpy as jnp
 
 def gathered_fused(x, weights, neighbours, inverse_mass):
     """L x over the last axis of x (..., V), one gather per slot of the table."""
-    acc = jnp.zeros_like(x)
-    for k in range(neighbours.shape[1]):
-        neighbour = x.at[..., neighbours[:, k]].get(mode="promise_in_bounds")
-        acc = acc + weights[:, k] * (neighbour - x)
-    return acc * inverse_mass
+    slots = [x.at[..., neighbours[:, k]].get(mode="promise_in_bounds") for k in range(neighbours.shape[1])]
+    return _neighbour_sum(slots, x, weights) * inverse_mass
 
 
 def gathered_apart(x, weights, neighbours, inverse_mass):
@@ -57,9 +54,10 @@ def _read_neighbours(group, table):
 
 
 def _neighbour_sum(gathered, x, weights):
-    """sum_k w_k (x_{n_k} - x) from the gathered neighbour values (K, V)."""
+    """sum_k w_k (x_{n_k} - x) from the neighbour values gathered per slot k: a (K, V) array
+    or a sequence of K arrays shaped like x."""
     acc = jnp.zeros_like(x)
-    for k in range(gathered.shape[0]):
+    for k in range(len(gathered)):
         acc = acc + weights[:, k] * (gathered[k] - x)
     return acc
 
