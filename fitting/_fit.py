@@ -4,8 +4,9 @@
 2. Global stage: a coarse design (Latin hypercube or grid) over the parameter bounds,
    evaluated as one vmapped batch (design points x `design_seeds` seeds); each point is
    also moved along the family's length parameter to the target's wavelength (and an
-   oriented family's angle turned to the target's stripes). Then `rounds` Latin
-   hypercubes in boxes around the best `keep` points (not moved again).
+   oriented family's angle turned to the target's stripes). Each fitted saturation limit
+   is scanned across its bounds at the best point so far (`LIMIT_SCAN` points). Then
+   `rounds` Latin hypercubes in boxes around the best `keep` points (not moved again).
 3. Noise: at the best design point the seed-to-seed spread of each statistic is measured,
    so the loss is in units of simulation noise (a diagonal synthetic likelihood).
 4. Local stage from each kept point: an Optimistix solver on the unconstrained
@@ -38,6 +39,7 @@ from ._result import FitResult
 from ._target import Target, load_target
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
+LIMIT_SCAN = 48  # points of a fitted limit's scan, about 2% of its bounds apart
 
 
 def _as_template(model, shape):
@@ -198,8 +200,9 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
             stage's (at most `seeds`: it only has to find the basin, and it is most of the
             simulations); seed: the fit's random seed.
         design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
-            n_design points (default 12 per fitted parameter), then `rounds` Latin hypercubes
-            in boxes (halving each round) around the best `keep`, which start local searches.
+            n_design points (default 12 per fitted parameter), a scan of each fitted limit
+            (`LIMIT_SCAN` points across its bounds), then `rounds` Latin hypercubes in boxes
+            (halving each round) around the best `keep`, which start local searches.
         method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
             iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
         stats: which statistics and how they are weighted (default `StatsConfig()`: pigment
@@ -276,7 +279,8 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
 
     label = stage_prefix + (fam.name if fam is not None else "fit")
     moves = length_scale in names or stripes is not None
-    total = n_design * (1 + int(rounds) + (1 if moves else 0)) + keep * max(max_steps, 1) * 2
+    total = (n_design * (1 + int(rounds) + (1 if moves else 0)) + LIMIT_SCAN * len(space.limits)
+             + keep * max(max_steps, 1) * 2)
     bar = Progress(label, total) if progress else None
     rec = _Recorder(bar)
     _RECORDERS.append(rec)
@@ -347,6 +351,20 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     rng = np.random.default_rng(seed)
     rec.stage = "design"
     all_unit, thetas, losses = evaluate(space.design(n_design, design, seed), move=True)
+    for i in space.limits:
+        # A limit acts only where it binds, and a target made near the limit that just lets
+        # the pattern form has a basin a few hundredths of the bounds wide along it (the
+        # bounded-Ua target: the loss is lowest within about 0.2 of the true Ua, at every
+        # ratio; fit_synthetic.md), which neither the design nor a gradient (zero where it
+        # does not bind) finds. So each fitted limit is scanned across its bounds at the
+        # best point so far, LIMIT_SCAN points 1/LIMIT_SCAN of the bounds apart.
+        rec.stage = "limits"
+        line = np.repeat(all_unit[np.argmin(losses)][None], LIMIT_SCAN, axis=0)
+        line[:, i] = (np.arange(LIMIT_SCAN) + 0.5) / LIMIT_SCAN
+        u_new, th_new, l_new = evaluate(line, move=False)
+        all_unit = np.concatenate([all_unit, u_new])
+        thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
+    rec.stage = "design"
     half = 0.25
     for _ in range(int(rounds)):
         best_u = all_unit[np.argsort(losses)[:keep]]

@@ -35,6 +35,9 @@ DEFAULT_BOUNDS = {
 }
 
 
+LIMITS = ("lower_a", "lower_b", "upper_a", "upper_b")
+
+
 def default_bounds(name: str):
     base = name.split(".")[-1].split(":")[-1]
     if base in DEFAULT_BOUNDS:
@@ -86,6 +89,11 @@ class ParamSpace:
     @property
     def size(self) -> int:
         return len(self.names)
+
+    @property
+    def limits(self) -> list:
+        """Indices of the fitted saturation limits (lower_a, upper_b, ... of any phase)."""
+        return [i for i, n in enumerate(self.names) if n.rpartition(".")[2].rpartition(":")[2] in LIMITS]
 
     def from_unit(self, u):
         """Unit coordinates (..., d) in [0, 1] -> parameter values (..., d)."""
