@@ -6,7 +6,8 @@
    also moved along the family's length parameter to the target's wavelength (and an
    oriented family's angle turned to the target's stripes). Each fitted saturation limit
    is scanned across its bounds at the best point so far (`LIMIT_SCAN` points). Then
-   `rounds` Latin hypercubes in boxes around the best `keep` points (not moved again).
+   `rounds` Latin hypercubes in boxes around the best `keep` points (not moved again),
+   kept within two scan steps along a limit whose scan found a narrow band (`_is_band`).
 3. Noise: at the best design point the seed-to-seed spread of each statistic is measured,
    so the loss is in units of simulation noise (a diagonal synthetic likelihood).
 4. Local stage from each kept point: an Optimistix solver on the unconstrained
@@ -40,6 +41,7 @@ from ._target import Target, load_target
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 LIMIT_SCAN = 48  # points of a fitted limit's scan, about 2% of its bounds apart
+BAND_RISE = 1.1  # a scan's minimum is a band when both its neighbours score 10% more (`_is_band`)
 
 
 def _as_template(model, shape):
@@ -351,6 +353,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     rng = np.random.default_rng(seed)
     rec.stage = "design"
     all_unit, thetas, losses = evaluate(space.design(n_design, design, seed), move=True)
+    widest = np.full(space.size, np.inf)  # the rounds' boxes' half-width along each coordinate, at most
     for i in space.limits:
         # A limit acts only where it binds, and a target made near the limit that just lets
         # the pattern form has a basin a few hundredths of the bounds wide along it (the
@@ -362,6 +365,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         line = np.repeat(all_unit[np.argmin(losses)][None], LIMIT_SCAN, axis=0)
         line[:, i] = (np.arange(LIMIT_SCAN) + 0.5) / LIMIT_SCAN
         u_new, th_new, l_new = evaluate(line, move=False)
+        k = int(np.argmin(l_new))
+        if l_new[k] < losses.min() and _is_band(l_new, k):  # the rounds stay in the band
+            widest[i] = 2.0 / LIMIT_SCAN
         all_unit = np.concatenate([all_unit, u_new])
         thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
     rec.stage = "design"
@@ -371,7 +377,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         local = []
         for u in best_u:  # a Latin hypercube in a box around each of the best so far
             box = space.design(max(2, n_design // keep), "lhs", int(rng.integers(1 << 30)))
-            local.append(np.clip(u + (2 * box - 1) * half, 1e-4, 1 - 1e-4))
+            local.append(np.clip(u + (2 * box - 1) * np.minimum(half, widest), 1e-4, 1 - 1e-4))
         # the boxes surround moved points already at the target's wavelength: not moved again
         u_new, th_new, l_new = evaluate(np.concatenate(local), move=False)
         all_unit = np.concatenate([all_unit, u_new])
@@ -466,6 +472,17 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample},
         config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
     )
+
+
+def _is_band(scan_losses, k: int) -> bool:
+    """Whether a limit scan's minimum at index k is a narrow band: both neighbours one scan
+    step away score at least BAND_RISE times more. Then the refinement rounds' boxes span two
+    scan steps either side of it along the limit, where a box a quarter of the bounds wide
+    would put few points in it (bounded-Ua: its neighbours 18% and 29% higher; the five
+    photos' lower_b scans at most 5%, fit_synthetic.md)."""
+    if k == 0 or k == len(scan_losses) - 1:
+        return False
+    return bool(min(scan_losses[k - 1], scan_losses[k + 1]) > BAND_RISE * scan_losses[k])
 
 
 def _tolist(tree):

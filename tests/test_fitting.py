@@ -412,6 +412,18 @@ def test_a_fitted_limit_is_scanned_across_its_bounds():
     assert abs(res.params["upper_a"] - truth["upper_a"]) < 3 * step
 
 
+def test_a_limit_scans_narrow_minimum_is_a_band():
+    """The refinement rounds keep to a limit's band only where the scan's minimum is narrow:
+    both neighbours at least 10% higher (bounded-Ua's scan: 110 | 85 | 101), not a smooth
+    minimum (the cheetah's lower_b: 1214 | 1164 | 1220) nor one at the scan's end."""
+    from fitting._fit import _is_band
+
+    assert _is_band(np.array([120.0, 110.1, 85.1, 100.6, 104.0]), 2)
+    assert not _is_band(np.array([1288.9, 1213.8, 1164.3, 1220.4, 1364.0]), 2)
+    assert not _is_band(np.array([110.1, 85.1, 100.6]) * np.array([1.0, 1.0, 0.9]), 1)
+    assert not _is_band(np.array([50.0, 85.1, 100.6]), 0)
+
+
 def test_auto_ranks_every_screened_family():
     sim = fitting.Simulator(mj.Turing(), shape=(24, 24), steps=8000, window=1000)
     field = np.asarray(sim.run({"ratio": 20.0, "scale": 1.2, "lower_b": 2.0}, jax.random.key(5)))
