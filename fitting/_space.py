@@ -38,8 +38,13 @@ DEFAULT_BOUNDS = {
 LIMITS = ("lower_a", "lower_b", "upper_a", "upper_b")
 
 
+def base_name(name: str) -> str:
+    """A parameter's name without its model path (`b.`) or phase (`growth:`): `upper_a`."""
+    return name.rpartition(".")[2].rpartition(":")[2]
+
+
 def default_bounds(name: str):
-    base = name.split(".")[-1].split(":")[-1]
+    base = base_name(name)
     if base in DEFAULT_BOUNDS:
         return DEFAULT_BOUNDS[base]
     raise ValueError(f"no default bounds for parameter {name!r}; give bounds={{'{name}': (low, high)}}")
@@ -93,7 +98,7 @@ class ParamSpace:
     @property
     def limits(self) -> list:
         """Indices of the fitted saturation limits (lower_a, upper_b, ... of any phase)."""
-        return [i for i, n in enumerate(self.names) if n.rpartition(".")[2].rpartition(":")[2] in LIMITS]
+        return [i for i, n in enumerate(self.names) if base_name(n) in LIMITS]
 
     def from_unit(self, u):
         """Unit coordinates (..., d) in [0, 1] -> parameter values (..., d)."""
