@@ -42,7 +42,7 @@ def worker(subdivisions: int, steps: int) -> dict:
     run()  # compile
     t_jax = timeit(run, min_time=1.0) / steps
     table, w = np.asarray(mesh.neighbours), np.asarray(mesh.weights, np.float32)
-    wm = sp.csr_matrix((w.ravel(), (np.repeat(np.arange(n), table.shape[1]), table.ravel())), shape=(n, n))
+    wm = sp.csr_matrix((w.ravel(), (np.tile(np.arange(n), table.shape[0]), table.ravel())), shape=(n, n))
     lap = (sp.diags(np.asarray(mesh.inverse_mass)) @ (wm - sp.diags(np.asarray(wm.sum(1)).ravel()))).tocsr()
     lap = lap.astype(np.float32)
     u0, v0 = (np.asarray(a) for a in state.arrays())

@@ -23,8 +23,8 @@ GS = dict(feed=0.0367, kill=0.0649, du=0.2097, dv=0.105)
 def matrices_of(mesh):
     """(K, M) rebuilt from the domain's own arrays: what the JAX operator applies."""
     n = mesh.n_vertices
-    table, w = np.asarray(mesh.neighbours), np.asarray(mesh.weights, float)
-    wm = sp.csr_matrix((w.ravel(), (np.repeat(np.arange(n), table.shape[1]), table.ravel())), shape=(n, n))
+    table, w = np.asarray(mesh.neighbours), np.asarray(mesh.weights, float)  # slot-major (K, V)
+    wm = sp.csr_matrix((w.ravel(), (np.tile(np.arange(n), table.shape[0]), table.ravel())), shape=(n, n))
     k = sp.diags(np.asarray(wm.sum(1)).ravel()) - wm
     return k, sp.diags(mesh.masses())
 
@@ -131,6 +131,41 @@ def test_gray_scott_run_matches_oracle(small):
     np.testing.assert_allclose(got[1], ref[1], atol=1e-5)
 
 
+def test_carried_layouts_hold_the_fields_exactly(small):
+    """On the CPU a run carries two species packed as one complex array: packing and
+    unpacking are exact, and the operator read from the packed layout is the plain one's.
+    An odd number of species is carried as it is."""
+    rng = np.random.default_rng(6)
+    x = jnp.asarray(rng.normal(size=(4, small.n_vertices)), jnp.float32)
+    rates = [jnp.ones(1)] * 4
+    for fields in (x[:2], x):
+        carried = small.carry(fields, None, False)
+        assert jnp.iscomplexobj(carried) == (jax.default_backend() == "cpu")
+        np.testing.assert_array_equal(np.asarray(small.interior(carried)), np.asarray(fields))
+        np.testing.assert_array_equal(np.asarray(small.interior(small.write(carried, 2 * fields, None, False))),
+                                      np.asarray(2 * fields))
+        terms = np.stack([np.asarray(t) for t in small.diffusion(carried, rates[: len(fields)])])
+        np.testing.assert_allclose(terms, np.asarray(small.apply(fields)), rtol=1e-6, atol=1e-6)
+    assert not jnp.iscomplexobj(small.carry(x[:3], None, False))
+
+
+def test_an_odd_number_of_species_runs_against_the_oracle(small):
+    """Three species (carried unpacked) diffusing at their own rates with a linear decay:
+    forward Euler with the SciPy operator."""
+    rates, decay = np.array([0.3, 0.1, 0.2]), 0.05
+    model = mj.Reaction(lambda x, p: -p["decay"] * x, {"decay": decay}, diffusion=list(rates), lower=-math.inf)
+    rng = np.random.default_rng(7)
+    x0 = rng.uniform(0.5, 1.5, (3, small.n_vertices))
+    dt = 0.5 * small.max_stable_dt(rates.max())
+    lap = laplacian(small.vertices, small.faces)
+    ref = x0.copy()
+    for _ in range(60):
+        ref = ref + dt * (rates[:, None] * (lap @ ref.T).T - decay * ref)
+    with jax.enable_x64(True):
+        got = mj.simulate(model, mj.State.from_arrays(list(x0)), 60, dt, domain=small).fields
+    np.testing.assert_allclose(np.asarray(got), ref, rtol=1e-6)  # the operator is stored in float32
+
+
 def test_dt_check_refuses_unstable_step_and_limit_is_tight(small):
     model = mj.GrayScott(feed=0.0, kill=0.0, du=1.0, dv=0.1, lower=-math.inf)
     limit = small.max_stable_dt(1.0)
@@ -185,6 +220,19 @@ def test_domain_serialises_exactly(small):
     assert isinstance(back, mj.Mesh) and back.rho == small.rho and back.mass == small.mass
     for name in ("vertices", "faces", "neighbours", "weights", "inverse_mass"):
         np.testing.assert_array_equal(np.asarray(getattr(back, name)), np.asarray(getattr(small, name)))
+
+
+def test_a_saved_vertex_major_operator_still_loads(small):
+    """Files written before the tables became slot-major hold them (V, K): read the same."""
+    params = _serialise.domain_to_dict(small)["params"]
+    for name in ("neighbours", "weights"):
+        params[name] = np.asarray(getattr(small, name)).T.tolist()
+    back = _serialise.domain_from_dict({"type": "Mesh", "params": params})
+    for name in ("neighbours", "weights"):
+        np.testing.assert_array_equal(np.asarray(getattr(back, name)), np.asarray(getattr(small, name)))
+    params["weights"] = params["weights"][:-1]
+    with pytest.raises(ValueError, match="saved operator does not match"):
+        _serialise.domain_from_dict({"type": "Mesh", "params": params})
 
 
 def test_phase_with_mesh_serialises_and_resumes(tmp_path):

@@ -15,8 +15,9 @@ which makes the operator no-flux there; w is symmetric, so pure diffusion conser
 mass-weighted total sum_i M_i u_i.
 
 The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
-as a padded table (vertices, max degree) of indices with their weights (zero on padding)
-and the inverse masses. Applying it in JAX (`_mesh_operator`) is a gather of the
+as a padded table (max degree, vertices) of indices with their weights (zero on padding)
+and the inverse masses. The tables are slot-major, slot k of every vertex in one row, so
+that the step reads the weights of a slot contiguously (`_mesh_operator`). Applying it in JAX (`_mesh_operator`) is a gather of the
 neighbours' values and a weighted sum, no scatter. Stability: forward Euler on pure
 diffusion is stable while dt * D * rho <= 2, rho the largest eigenvalue of -L (L is
 negative semi-definite for any mesh: -u^T M L u is the Dirichlet energy of the linear
@@ -46,7 +47,7 @@ import numpy as np
 
 from .._checks import check_choice
 from ._base import AbstractDomain
-from ._mesh_operator import apply_operator
+from ._mesh_operator import apply_operator, gathered_packed, pack_pairs, packs_pairs, unpack_pairs
 from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
@@ -137,9 +138,9 @@ def cotangent_operator(v: np.ndarray, f: np.ndarray, mass: str = "voronoi"):
 
 
 def _neighbour_table(n: int, rows, cols, *ws):
-    """Sum duplicate (i, j) weights and pack each vertex's neighbours into a padded table:
-    (neighbours (n, K) int32 padded with the vertex itself, then per weight array in `ws`
-    its (n, K) table padded with 0)."""
+    """Sum duplicate (i, j) weights and pack each vertex's neighbours into a padded table,
+    slot-major: (neighbours (K, n) int32 padded with the vertex itself, then per weight
+    array in `ws` its (K, n) table padded with 0)."""
     key = rows * n + cols
     uniq, inverse = np.unique(key, return_inverse=True)
     r, c = uniq // n, uniq % n  # sorted by row, then column
@@ -149,10 +150,10 @@ def _neighbour_table(n: int, rows, cols, *ws):
     slot = np.arange(len(r)) - start[r]
     table = np.repeat(np.arange(n)[:, None], k, axis=1)
     table[r, slot] = c
-    out = [table.astype(np.int32)]
+    out = [np.ascontiguousarray(table.T, np.int32)]
     for w in ws:
-        weights = np.zeros((n, k))
-        weights[r, slot] = np.bincount(inverse, weights=w, minlength=len(uniq))
+        weights = np.zeros((k, n))
+        weights[slot, r] = np.bincount(inverse, weights=w, minlength=len(uniq))
         out.append(weights)
     return tuple(out)
 
@@ -194,18 +195,26 @@ def directional_weights(v: np.ndarray, f: np.ndarray, direction):
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
 
 
+def weight_matrix(table, weights):
+    """The (V, V) sparse matrix W of the weights w_ij from slot-major tables (K, V)."""
+    import scipy.sparse as sp
+
+    n = table.shape[1]
+    rows = np.tile(np.arange(n), table.shape[0])
+    return sp.csr_matrix((np.ravel(weights), (rows, np.ravel(table))), shape=(n, n))
+
+
 def largest_eigenvalue(table, weights, inverse_mass) -> float:
     """Largest eigenvalue of -L = M^-1 (D - W) (Lanczos on the symmetric form), in the
     mesh's length^-2, times `SAFETY`, capped by the Gershgorin bound (see the module)."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import eigsh
 
-    n = len(inverse_mass)
-    w = sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(n), table.shape[1]), table.ravel())), shape=(n, n))
+    w = weight_matrix(table, weights)
     d = np.asarray(w.sum(1)).ravel()
     s = sp.diags(np.sqrt(inverse_mass))
     sym = s @ (sp.diags(d) - w) @ s
-    gershgorin = float(np.max(inverse_mass * (np.abs(weights).sum(1) + np.abs(d))))
+    gershgorin = float(np.max(inverse_mass * (np.abs(weights).sum(0) + np.abs(d))))
     try:
         lam = float(eigsh(sym, k=1, which="LA", tol=1e-6, maxiter=5000, return_eigenvectors=False)[0])
     except Exception:  # no convergence: the bound that holds for every matrix
@@ -277,11 +286,11 @@ class Mesh(AbstractDomain):
 
     vertices: np.ndarray
     faces: np.ndarray
-    neighbours: jnp.ndarray  # (V, K) int32: each vertex's neighbours, padded with itself
-    weights: jnp.ndarray  # (V, K): cotangent weights w_ij, 0 on padding
+    neighbours: jnp.ndarray  # (K, V) int32: each vertex's neighbours, slot by slot, padded with itself
+    weights: jnp.ndarray  # (K, V): cotangent weights w_ij, 0 on padding
     inverse_mass: jnp.ndarray  # (V,): 1 / M_i, length^-2
     direction: np.ndarray | None  # None, (3,) or (V, 3): the anisotropy's direction field
-    directional: jnp.ndarray | None  # (V, K): weights of t t^T minus the isotropic ones, None if isotropic
+    directional: jnp.ndarray | None  # (K, V): weights of t t^T minus the isotropic ones, None if isotropic
     along: jnp.ndarray  # factor of the rates along the direction
     across: jnp.ndarray  # factor of the rates across it
     uv: np.ndarray | None  # (T, 2) texture vertices, or None
@@ -303,7 +312,10 @@ class Mesh(AbstractDomain):
             table, w, inv, rho = (np.asarray(neighbours, np.int32), np.asarray(weights), np.asarray(inverse_mass),
                                   float(rho))
             wd = None if directional is None else np.asarray(directional)
-            if table.shape != w.shape or table.shape[0] != len(v) or inv.shape != (len(v),):
+            if table.ndim == 2 and table.shape[0] == len(v) != table.shape[1]:  # saved vertex-major (V, K)
+                table, w, wd = table.T, w.T, None if wd is None else wd.T
+            if (table.shape != w.shape or table.shape[1] != len(v) or inv.shape != (len(v),)
+                    or (wd is not None and wd.shape != w.shape)):
                 raise ValueError("Mesh: the saved operator does not match the vertices")
         else:
             v, f = check_mesh(vertices, faces)
@@ -362,31 +374,42 @@ class Mesh(AbstractDomain):
     def n_vertices(self) -> int:
         return int(self.vertices.shape[0])
 
-    def _operator(self, x):
-        x = jnp.asarray(x)
+    def _weights(self, dtype):
+        """The weights (K, V) of the operator in `dtype`, the anisotropy's parts combined."""
         w = self.weights
         if self.directional is not None:  # the tensor along t t^T + across (I - t t^T)
             w = self.across * w + (self.along - self.across) * self.directional
-        w = w.astype(x.dtype) if jnp.issubdtype(x.dtype, jnp.floating) else w
+        return w.astype(dtype)
+
+    def _operator(self, x):
+        x = jnp.asarray(x)
+        w = self._weights(x.dtype if jnp.issubdtype(x.dtype, jnp.floating) else self.weights.dtype)
         # the indices were checked at construction, so the gathers may promise to be in bounds
         return apply_operator(x, w, self.neighbours, self.inverse_mass.astype(w.dtype))
 
+    # On the CPU the loop carries the species packed in pairs as complex numbers (see
+    # _mesh_operator): `carry` packs them, `interior` unpacks, `write` packs the new values.
     def carry(self, fields, size, dynamic):
         if dynamic:
             raise ValueError("growth is not supported on a Mesh (its vertices are fixed)")
         self._check_fields(fields)
-        return fields
+        return pack_pairs(fields) if packs_pairs(fields) else fields
 
     def interior(self, carried):
-        return carried
+        return unpack_pairs(carried) if jnp.iscomplexobj(carried) else carried
 
     def diffusion(self, carried, rates):
-        op = self._operator(carried)
+        if jnp.iscomplexobj(carried):
+            w = self._weights(jnp.real(carried).dtype)
+            op = gathered_packed(carried, w, self.neighbours, self.inverse_mass.astype(w.dtype))
+        else:
+            op = self._operator(carried)
         # the step shapes each species' rate for one spatial axis: (1,) or (vertices,)
-        return [rates[i] * op[i] for i in range(op.shape[0])]
+        return [rates[i] * op[i] for i in range(len(op))]
 
     def write(self, carried, new, size, dynamic):
-        return new  # per-species numbers reach the step shaped for this domain's one axis
+        # per-species numbers reach the step shaped for this domain's one axis
+        return pack_pairs(new) if jnp.iscomplexobj(carried) else new
 
     def active_mask(self, shape, size):
         return jnp.ones(tuple(shape), bool)

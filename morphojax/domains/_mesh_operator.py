@@ -1,24 +1,28 @@
 """Applying a mesh's neighbour-table operator in JAX:
 
-    (L x)_i = (1 / M_i) sum_k w_ik (x_{n_ik} - x_i)
+    (L x)_i = (1 / M_i) sum_k w_ki (x_{n_ki} - x_i)
 
-over the slots k of the padded table (padding has w = 0 and points at the vertex itself).
-Writing sum_k w_k (x_k - x) rather than sum_k w_k x_k - (sum_k w_k) x keeps a constant
-field an exact fixed point. No scatter: every vertex reads its own neighbours.
+over the slots k of the padded, slot-major tables n and w (K, V) (padding has w = 0 and
+points at the vertex itself). Writing sum_k w_k (x_k - x) rather than
+sum_k w_k x_k - (sum_k w_k) x keeps a constant field an exact fixed point. No scatter:
+every vertex reads its own neighbours.
 
 Reading the neighbours is what the step spends its time on, and the two backends want it
 done differently:
 - on the CPU (`gathered_apart`), the neighbours are read by one gather of the whole (K, V)
-  table, a loop of its own, and the arithmetic then streams through the gathered values,
-  which XLA vectorises (with the gathers fused into the arithmetic, the fused loop reads
-  element by element and is not vectorised). Species are read two at a time, packed as
-  the real and imaginary parts of one complex number, so one 64-bit load fetches both;
-  they are unpacked before any arithmetic, so nothing is computed in complex numbers, and
-  the packing is exact and differentiable. The CPU step runs 1.15-1.5x faster this way
-  (benchmarks/results/bench_mesh.md);
+  table, a loop of its own, and the arithmetic then streams through the gathered values and
+  the weights, row by row, which XLA vectorises (with the gathers fused into the
+  arithmetic, the fused loop reads element by element and is not vectorised). Species are
+  read two at a time, packed as the real and imaginary parts of one complex number
+  (`pack_pairs`), so that one gather fetches both; they are unpacked before any
+  arithmetic, so nothing is computed in complex numbers, and the packing is exact and
+  differentiable. A run on the CPU carries its species packed so through the whole loop
+  (`gathered_packed`; `Mesh.carry`): each step is then one gather and one loop for the
+  weighted sums, the reaction and the packing of the new values, which writes in place;
 - elsewhere (`gathered_fused`), one gather per slot of the table, accumulated: XLA fuses
   these into the step's one loop, the form the GPU figures were measured with.
-Both give the same numbers to rounding; the choice is made when the step is traced.
+All forms give the same numbers to rounding; the choice is made when the step is traced.
+The speeds of each form are in benchmarks/results/bench_mesh.md.
 """
 
 from __future__ import annotations
@@ -26,10 +30,38 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+PAIRABLE = (jnp.float32, jnp.float64)  # the dtypes with a complex counterpart
+
+
+def packs_pairs(fields) -> bool:
+    """Whether a run carries `fields` (S, V) packed in pairs: on the CPU, for an even number
+    of species of a dtype with a complex counterpart."""
+    return (jax.default_backend() == "cpu" and fields.ndim == 2 and fields.shape[0] % 2 == 0
+            and fields.dtype in PAIRABLE)
+
+
+def pack_pairs(fields):
+    """(2P, V) real -> species 2i and 2i + 1 as the real and imaginary parts of row i of a
+    (P, V) complex array; (V,) for one pair, so that the step's loop writes the carried
+    array in place (a (1, V) result is a reshape of the loop's output, which XLA copies)."""
+    if fields.shape[0] == 2:
+        return jax.lax.complex(fields[0], fields[1])
+    return jax.lax.complex(fields[0::2], fields[1::2])
+
+
+def unpack_pairs(packed):
+    """The inverse of `pack_pairs`: (2P, V) real."""
+    # stacked from the single species, so that the step's reads of a species are its part
+    return jnp.stack([part for pair in _pairs(packed) for part in (jnp.real(pair), jnp.imag(pair))])
+
+
+def _pairs(packed):
+    return [packed] if packed.ndim == 1 else list(packed)
+
 
 def gathered_fused(x, weights, neighbours, inverse_mass):
     """L x over the last axis of x (..., V), one gather per slot of the table."""
-    slots = [x.at[..., neighbours[:, k]].get(mode="promise_in_bounds") for k in range(neighbours.shape[1])]
+    slots = [x.at[..., neighbours[k]].get(mode="promise_in_bounds") for k in range(neighbours.shape[0])]
     return _neighbour_sum(slots, x, weights) * inverse_mass
 
 
@@ -38,27 +70,33 @@ def gathered_apart(x, weights, neighbours, inverse_mass):
     if x.ndim > 2:  # leading batch axes
         return jax.vmap(gathered_apart, in_axes=(0, None, None, None))(x, weights, neighbours, inverse_mass)
     species = [x] if x.ndim == 1 else list(x)
-    width = 2 if x.dtype in (jnp.float32, jnp.float64) else 1  # the dtypes with a complex counterpart
-    table = neighbours.T  # (K, V): each slot's gathered values are contiguous
-    gathered = [g for i in range(0, len(species), width) for g in _read_neighbours(species[i: i + width], table)]
-    out = [_neighbour_sum(g, s, weights) for g, s in zip(gathered, species)]
-    return (out[0] if x.ndim == 1 else jnp.stack(out)) * inverse_mass
+    width = 2 if x.dtype in PAIRABLE else 1
+    groups = [species[i: i + width] for i in range(0, len(species), width)]
+    reads = [g for group in groups for g in _read_neighbours(jax.lax.complex(*group) if len(group) == 2 else group[0],
+                                                                neighbours)]
+    out = [_neighbour_sum(g, s, weights) * inverse_mass for g, s in zip(reads, species)]
+    return out[0] if x.ndim == 1 else jnp.stack(out)
 
 
-def _read_neighbours(group, table):
-    """The neighbours' values (K, V) of one species, or of two read together as u + i v."""
-    if len(group) == 1:
-        return [group[0].at[table].get(mode="promise_in_bounds")]
-    both = jax.lax.complex(*group).at[table].get(mode="promise_in_bounds")
-    return [jnp.real(both), jnp.imag(both)]
+def gathered_packed(packed, weights, neighbours, inverse_mass):
+    """L x of the species packed in pairs by `pack_pairs`: a list of 2P arrays (V,)."""
+    reads = [g for pair in _pairs(packed) for g in _read_neighbours(pair, neighbours)]
+    species = [part for pair in _pairs(packed) for part in (jnp.real(pair), jnp.imag(pair))]
+    return [_neighbour_sum(g, s, weights) * inverse_mass for g, s in zip(reads, species)]
+
+
+def _read_neighbours(values, neighbours):
+    """The neighbours' values (K, V) of one species, or of two packed as u + i v (a list of two)."""
+    gathered = values.at[neighbours].get(mode="promise_in_bounds")
+    return [jnp.real(gathered), jnp.imag(gathered)] if jnp.iscomplexobj(values) else [gathered]
 
 
 def _neighbour_sum(gathered, x, weights):
-    """sum_k w_k (x_{n_k} - x) from the neighbour values gathered per slot k: a (K, V) array
-    or a sequence of K arrays shaped like x."""
+    """sum_k w_k (x_{n_k} - x) from the neighbour values gathered per slot k (a (K, V) array
+    or a sequence of K arrays shaped like x) and the weights (K, V)."""
     acc = jnp.zeros_like(x)
     for k in range(len(gathered)):
-        acc = acc + weights[:, k] * (gathered[k] - x)
+        acc = acc + weights[k] * (gathered[k] - x)
     return acc
 
 
