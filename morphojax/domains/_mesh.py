@@ -17,14 +17,15 @@ mass-weighted total sum_i M_i u_i.
 The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
 as a padded table (max degree, vertices) of indices with their weights (zero on padding)
 and the inverse masses. The tables are slot-major, slot k of every vertex in one row, so
-that the step reads the weights of a slot contiguously (`_mesh_operator`). Applying it in JAX (`_mesh_operator`) is a gather of the
-neighbours' values and a weighted sum, no scatter. Stability: forward Euler on pure
-diffusion is stable while dt * D * rho <= 2, rho the largest eigenvalue of -L (L is
-negative semi-definite for any mesh: -u^T M L u is the Dirichlet energy of the linear
-interpolant); rho is computed at construction by Lanczos iterations (scipy's eigsh) on the
-symmetric form M^-1/2 (D - W) M^-1/2, times 1.01 (the iterations approach it from below),
-and never above the Gershgorin bound max_i 2 sum_j |w_ij| / M_i, which holds for every
-matrix.
+that the step reads a slot's weights contiguously. Applying it in JAX (`_mesh_operator`)
+is a gather of the neighbours' values and a weighted sum, no scatter.
+
+Stability: forward Euler on pure diffusion is stable while dt * D * rho <= 2, rho the
+largest eigenvalue of -L (L is negative semi-definite for any mesh: -u^T M L u is the
+Dirichlet energy of the linear interpolant); rho is computed at construction by Lanczos
+iterations (scipy's eigsh) on the symmetric form M^-1/2 (D - W) M^-1/2, times 1.01 (the
+iterations approach it from below), and never above the Gershgorin bound
+max_i 2 sum_j |w_ij| / M_i, which holds for every matrix.
 
 Anisotropic diffusion (`direction=`, `along=`, `across=`): the finite-element operator of
 the tangent tensor along t t^T + across (I - t t^T) on each triangle, t the direction field
