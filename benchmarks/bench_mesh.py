@@ -31,6 +31,7 @@ def worker(subdivisions: int, steps: int) -> dict:
 
     import morphojax as mj
     from mesh_oracle import gray_scott_run
+    from morphojax.domains._mesh import weight_matrix
     from morphojax.presets._meshes import seed_patches
 
     radius = 1.0 / (EDGE * 2.0 ** (5 - subdivisions))
@@ -41,8 +42,7 @@ def worker(subdivisions: int, steps: int) -> dict:
     run = lambda: jax.block_until_ready(mj.simulate(model, state, steps=steps, dt=DT, domain=mesh).fields)  # noqa: E731
     run()  # compile
     t_jax = timeit(run, min_time=1.0) / steps
-    table, w = np.asarray(mesh.neighbours), np.asarray(mesh.weights, np.float32)
-    wm = sp.csr_matrix((w.ravel(), (np.tile(np.arange(n), table.shape[0]), table.ravel())), shape=(n, n))
+    wm = weight_matrix(np.asarray(mesh.neighbours), np.asarray(mesh.weights, np.float32))
     lap = (sp.diags(np.asarray(mesh.inverse_mass)) @ (wm - sp.diags(np.asarray(wm.sum(1)).ravel()))).tocsr()
     lap = lap.astype(np.float32)
     u0, v0 = (np.asarray(a) for a in state.arrays())

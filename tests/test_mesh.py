@@ -149,13 +149,14 @@ def test_carried_layouts_hold_the_fields_exactly(small):
     assert not jnp.iscomplexobj(small.carry(x[:3], None, False))
 
 
-def test_an_odd_number_of_species_runs_against_the_oracle(small):
-    """Three species (carried unpacked) diffusing at their own rates with a linear decay:
-    forward Euler with the SciPy operator."""
-    rates, decay = np.array([0.3, 0.1, 0.2]), 0.05
+@pytest.mark.parametrize("rates", [[0.3, 0.1, 0.2], [0.3, 0.1, 0.2, 0.05]])
+def test_any_number_of_species_runs_against_the_oracle(small, rates):
+    """Three species (carried as they are) and four (two packed pairs) diffusing at their own
+    rates with a linear decay, in float64: forward Euler with the SciPy operator."""
+    rates, decay = np.asarray(rates), 0.05
     model = mj.Reaction(lambda x, p: -p["decay"] * x, {"decay": decay}, diffusion=list(rates), lower=-math.inf)
     rng = np.random.default_rng(7)
-    x0 = rng.uniform(0.5, 1.5, (3, small.n_vertices))
+    x0 = rng.uniform(0.5, 1.5, (len(rates), small.n_vertices))
     dt = 0.5 * small.max_stable_dt(rates.max())
     lap = laplacian(small.vertices, small.faces)
     ref = x0.copy()
@@ -164,6 +165,17 @@ def test_an_odd_number_of_species_runs_against_the_oracle(small):
     with jax.enable_x64(True):
         got = mj.simulate(model, mj.State.from_arrays(list(x0)), 60, dt, domain=small).fields
     np.testing.assert_allclose(np.asarray(got), ref, rtol=1e-6)  # the operator is stored in float32
+
+
+def test_complex_values_are_operated_on_as_complex(small):
+    """The operator is linear: on complex values, the operator of the real and imaginary
+    parts (complex species are never packed in pairs)."""
+    rng = np.random.default_rng(9)
+    re, im = (jnp.asarray(rng.normal(size=(2, small.n_vertices)), jnp.float32) for _ in range(2))
+    for z, a, b in ((re[0] + 1j * im[0], re[0], im[0]), (re + 1j * im, re, im)):
+        got = np.asarray(small.apply(z))
+        np.testing.assert_allclose(got.real, np.asarray(small.apply(a)), rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(got.imag, np.asarray(small.apply(b)), rtol=1e-5, atol=1e-5)
 
 
 def test_dt_check_refuses_unstable_step_and_limit_is_tight(small):
@@ -224,12 +236,14 @@ def test_domain_serialises_exactly(small):
 
 def test_a_saved_vertex_major_operator_still_loads(small):
     """Files written before the tables became slot-major hold them (V, K): read the same."""
-    params = _serialise.domain_to_dict(small)["params"]
-    for name in ("neighbours", "weights"):
-        params[name] = np.asarray(getattr(small, name)).T.tolist()
+    mesh = mj.Mesh(small.vertices, small.faces, direction=[0.0, 0.0, 1.0], along=2.0)
+    params = _serialise.domain_to_dict(mesh)["params"]
+    tables = ("neighbours", "weights", "directional")
+    for name in tables:
+        params[name] = np.asarray(getattr(mesh, name)).T.tolist()
     back = _serialise.domain_from_dict({"type": "Mesh", "params": params})
-    for name in ("neighbours", "weights"):
-        np.testing.assert_array_equal(np.asarray(getattr(back, name)), np.asarray(getattr(small, name)))
+    for name in tables:
+        np.testing.assert_array_equal(np.asarray(getattr(back, name)), np.asarray(getattr(mesh, name)))
     params["weights"] = params["weights"][:-1]
     with pytest.raises(ValueError, match="saved operator does not match"):
         _serialise.domain_from_dict({"type": "Mesh", "params": params})

@@ -43,12 +43,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._checks import check_choice
 from ._base import AbstractDomain
-from ._mesh_operator import apply_operator, gathered_packed, pack_pairs, packs_pairs, unpack_pairs
+from ._mesh_operator import PAIRABLE, apply_operator, gathered_packed, pack_pairs, unpack_pairs
 from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
@@ -313,7 +314,9 @@ class Mesh(AbstractDomain):
             table, w, inv, rho = (np.asarray(neighbours, np.int32), np.asarray(weights), np.asarray(inverse_mass),
                                   float(rho))
             wd = None if directional is None else np.asarray(directional)
-            if table.ndim == 2 and table.shape[0] == len(v) != table.shape[1]:  # saved vertex-major (V, K)
+            # saved before the tables became slot-major: (V, K), told apart by its first axis,
+            # since K (the largest degree) is below V and a table is never square
+            if table.ndim == 2 and table.shape[0] == len(v) != table.shape[1]:
                 table, w, wd = table.T, w.T, None if wd is None else wd.T
             if (table.shape != w.shape or table.shape[1] != len(v) or inv.shape != (len(v),)
                     or (wd is not None and wd.shape != w.shape)):
@@ -388,13 +391,17 @@ class Mesh(AbstractDomain):
         # the indices were checked at construction, so the gathers may promise to be in bounds
         return apply_operator(x, w, self.neighbours, self.inverse_mass.astype(w.dtype))
 
-    # On the CPU the loop carries the species packed in pairs as complex numbers (see
-    # _mesh_operator): `carry` packs them, `interior` unpacks, `write` packs the new values.
+    # The loop's layout: on the CPU, species that pair up (an even number, of a real dtype
+    # with a complex counterpart) are carried packed as complex pairs, which makes the step
+    # one gather and one loop (see _mesh_operator); `carry` packs, `interior` unpacks,
+    # `write` packs the new values. Anything else is carried as it is: a complex carry
+    # always means packed pairs.
     def carry(self, fields, size, dynamic):
         if dynamic:
             raise ValueError("growth is not supported on a Mesh (its vertices are fixed)")
         self._check_fields(fields)
-        return pack_pairs(fields) if packs_pairs(fields) else fields
+        pairs_up = fields.ndim == 2 and fields.shape[0] % 2 == 0 and fields.dtype in PAIRABLE
+        return pack_pairs(fields) if pairs_up and jax.default_backend() == "cpu" else fields
 
     def interior(self, carried):
         return unpack_pairs(carried) if jnp.iscomplexobj(carried) else carried
@@ -409,7 +416,6 @@ class Mesh(AbstractDomain):
         return [rates[i] * op[i] for i in range(len(op))]
 
     def write(self, carried, new, size, dynamic):
-        # per-species numbers reach the step shaped for this domain's one axis
         return pack_pairs(new) if jnp.iscomplexobj(carried) else new
 
     def active_mask(self, shape, size):

@@ -16,11 +16,11 @@ done differently:
   read two at a time, packed as the real and imaginary parts of one complex number
   (`pack_pairs`), so that one gather fetches both; they are unpacked before any
   arithmetic, so nothing is computed in complex numbers, and the packing is exact and
-  differentiable. A run on the CPU carries its species packed so through the whole loop
-  (`gathered_packed`; `Mesh.carry`): each step is then one gather and one loop for the
-  weighted sums, the reaction and the packing of the new values, which writes in place
-  (under `jax.vmap` the packed carry is 9-12% slower than a plain one: the vmapped gather
-  reads a column of members per index);
+  differentiable. A run on the CPU whose species pair up (an even number, float32 or
+  float64) carries them packed so through the whole loop (`gathered_packed`; `Mesh.carry`):
+  each step is then one gather and one loop for the weighted sums, the reaction and the
+  packing of the new values, which writes in place. Under `jax.vmap` the packed carry is
+  slower than a plain one would be: the vmapped gather reads a column of members per index;
 - elsewhere (`gathered_fused`), one gather per slot of the table, accumulated: XLA fuses
   these into the step's one loop, the form the GPU figures were measured with.
 All forms give the same numbers to rounding; the choice is made when the step is traced.
@@ -32,20 +32,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-PAIRABLE = (jnp.float32, jnp.float64)  # the dtypes with a complex counterpart
-
-
-def packs_pairs(fields) -> bool:
-    """Whether a run carries `fields` (S, V) packed in pairs: on the CPU, for an even number
-    of species of a dtype with a complex counterpart."""
-    return (jax.default_backend() == "cpu" and fields.ndim == 2 and fields.shape[0] % 2 == 0
-            and fields.dtype in PAIRABLE)
+PAIRABLE = (jnp.float32, jnp.float64)  # the real dtypes with a complex counterpart
 
 
 def pack_pairs(fields):
     """(2P, V) real -> species 2i and 2i + 1 as the real and imaginary parts of row i of a
-    (P, V) complex array; (V,) for one pair, so that the step's loop writes the carried
-    array in place (a (1, V) result is a reshape of the loop's output, which XLA copies)."""
+    (P, V) complex array; (V,) for one pair, so that a loop carrying it writes it in place
+    (a (1, V) result is a reshape of the loop's output, which XLA copies each step)."""
     if fields.shape[0] == 2:
         return jax.lax.complex(fields[0], fields[1])
     return jax.lax.complex(fields[0::2], fields[1::2])
@@ -53,12 +46,14 @@ def pack_pairs(fields):
 
 def unpack_pairs(packed):
     """The inverse of `pack_pairs`: (2P, V) real."""
-    # stacked from the single species, so that the step's reads of a species are its part
-    return jnp.stack([part for pair in _pairs(packed) for part in (jnp.real(pair), jnp.imag(pair))])
+    return jnp.stack(_unpacked_species(packed))
 
 
-def _pairs(packed):
-    return [packed] if packed.ndim == 1 else list(packed)
+def _unpacked_species(packed):
+    # The species one by one: a stack of these, rather than a reshape of whole real and
+    # imaginary arrays, is what XLA folds away when the step reads a species back.
+    pairs = [packed] if packed.ndim == 1 else list(packed)
+    return [part for pair in pairs for part in (jnp.real(pair), jnp.imag(pair))]
 
 
 def gathered_fused(x, weights, neighbours, inverse_mass):
@@ -71,26 +66,28 @@ def gathered_apart(x, weights, neighbours, inverse_mass):
     """L x over the last axis of x (..., V), one (K, V) gather per pair of species."""
     if x.ndim > 2:  # leading batch axes
         return jax.vmap(gathered_apart, in_axes=(0, None, None, None))(x, weights, neighbours, inverse_mass)
-    species = [x] if x.ndim == 1 else list(x)
-    width = 2 if x.dtype in PAIRABLE else 1
-    groups = [species[i: i + width] for i in range(0, len(species), width)]
-    reads = [g for group in groups for g in _read_neighbours(jax.lax.complex(*group) if len(group) == 2 else group[0],
-                                                                neighbours)]
-    out = [_neighbour_sum(g, s, weights) * inverse_mass for g, s in zip(reads, species)]
+    species = x[None] if x.ndim == 1 else x
+    paired = 2 * (len(species) // 2) if x.dtype in PAIRABLE else 0
+    out = gathered_packed(pack_pairs(species[:paired]), weights, neighbours, inverse_mass) if paired else []
+    out += [_neighbour_sum(_gather(s, neighbours), s, weights) * inverse_mass for s in species[paired:]]
     return out[0] if x.ndim == 1 else jnp.stack(out)
 
 
 def gathered_packed(packed, weights, neighbours, inverse_mass):
-    """L x of the species packed in pairs by `pack_pairs`: a list of 2P arrays (V,)."""
-    reads = [g for pair in _pairs(packed) for g in _read_neighbours(pair, neighbours)]
-    species = [part for pair in _pairs(packed) for part in (jnp.real(pair), jnp.imag(pair))]
-    return [_neighbour_sum(g, s, weights) * inverse_mass for g, s in zip(reads, species)]
+    """L x of the species packed by `pack_pairs`, read pair by pair: a list of 2P arrays (V,),
+    one per species (the step takes its diffusion terms species by species)."""
+    pairs = [packed] if packed.ndim == 1 else list(packed)
+    reads = [g for pair in pairs for g in _real_and_imaginary(_gather(pair, neighbours))]
+    return [_neighbour_sum(g, s, weights) * inverse_mass for g, s in zip(reads, _unpacked_species(packed))]
 
 
-def _read_neighbours(values, neighbours):
-    """The neighbours' values (K, V) of one species, or of two packed as u + i v (a list of two)."""
-    gathered = values.at[neighbours].get(mode="promise_in_bounds")
-    return [jnp.real(gathered), jnp.imag(gathered)] if jnp.iscomplexobj(values) else [gathered]
+def _gather(values, neighbours):
+    """The neighbours' values (K, V) of one array (V,)."""
+    return values.at[neighbours].get(mode="promise_in_bounds")
+
+
+def _real_and_imaginary(z):
+    return jnp.real(z), jnp.imag(z)
 
 
 def _neighbour_sum(gathered, x, weights):
