@@ -31,7 +31,7 @@ def worker(subdivisions: int, steps: int) -> dict:
 
     import morphojax as mj
     from mesh_oracle import gray_scott_run
-    from morphojax.domains._mesh import weight_matrix
+    from morphojax.domains._mesh_build import weight_matrix
     from morphojax.presets._meshes import seed_patches
 
     radius = 1.0 / (EDGE * 2.0 ** (5 - subdivisions))

@@ -14,11 +14,11 @@ length^-2 and diffusion rates in length^2 per unit time. A boundary edge has one
 which makes the operator no-flux there; w is symmetric, so pure diffusion conserves the
 mass-weighted total sum_i M_i u_i.
 
-The operator is built once in NumPy and stored as array leaves: each vertex's neighbours
-as a padded table (max degree, vertices) of indices with their weights (zero on padding)
-and the inverse masses. The tables are slot-major, slot k of every vertex in one row, so
-that the step reads a slot's weights contiguously. Applying it in JAX (`_mesh_operator`)
-is a gather of the neighbours' values and a weighted sum, no scatter.
+The operator is built once in NumPy (`_mesh_build`) and stored as array leaves: each
+vertex's neighbours as a padded table (max degree, vertices) of indices with their weights
+(zero on padding) and the inverse masses. The tables are slot-major, slot k of every vertex
+in one row, so that the step reads a slot's weights contiguously. Applying it in JAX
+(`_mesh_operator`) is a gather of the neighbours' values and a weighted sum, no scatter.
 
 Stability: forward Euler on pure diffusion is stable while dt * D * rho <= 2, rho the
 largest eigenvalue of -L (L is negative semi-definite for any mesh: -u^T M L u is the
@@ -49,15 +49,15 @@ import numpy as np
 
 from .._checks import check_choice
 from ._base import AbstractDomain
+from ._mesh_build import cotangent_operator, directional_weights, largest_eigenvalue, neighbour_table
 from ._mesh_operator import PAIRABLE, apply_operator, gathered_packed, pack_pairs, unpack_pairs
 from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
-SAFETY = 1.01  # rho = SAFETY x the Lanczos estimate of the largest eigenvalue (from below)
 FORMATS = ("obj", "ply", "stl", "off")
 
 
-# ---- geometry in NumPy (built once) --------------------------------------------------------
+# ---- checking and welding a mesh in NumPy ---------------------------------------------------
 def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """(vertices float64 (V, 3), faces int64 (F, 3)) after checking a triangle mesh.
 
@@ -102,126 +102,6 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"Mesh has {int((~used).sum())} vertices that no face uses (first: {int(np.argmin(used))}); "
                          "remove them, they would have no area")
     return v, f
-
-
-def cotangent_operator(v: np.ndarray, f: np.ndarray, mass: str = "voronoi"):
-    """(rows, cols, weights, masses): the symmetric cotangent weights w_ij as COO triplets
-    (both directions, duplicates summed) and the lumped vertex areas M_i (see the module)."""
-    corners = [v[f[:, k]] for k in range(3)]
-    cots, sq = [], []
-    for k in range(3):  # the angle at corner k is opposite the edge (k + 1, k + 2)
-        a = corners[(k + 1) % 3] - corners[k]
-        b = corners[(k + 2) % 3] - corners[k]
-        cots.append((a * b).sum(1) / np.linalg.norm(np.cross(a, b), axis=1))
-        sq.append(((corners[(k + 1) % 3] - corners[(k + 2) % 3]) ** 2).sum(1))  # edge opposite k, squared
-    rows, cols, w = [], [], []
-    for k in range(3):
-        i, j = f[:, (k + 1) % 3], f[:, (k + 2) % 3]
-        rows += [i, j]
-        cols += [j, i]
-        w += [0.5 * cots[k], 0.5 * cots[k]]
-    rows, cols, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
-    area = 0.5 * np.linalg.norm(np.cross(corners[1] - corners[0], corners[2] - corners[0]), axis=1)
-    m = np.zeros(len(v))
-    if mass == "barycentric":
-        for k in range(3):
-            np.add.at(m, f[:, k], area / 3.0)
-        return rows, cols, w, m
-    # mixed Voronoi (Meyer et al. 2003, Fig. 4): the Voronoi region inside a non-obtuse
-    # triangle; half the area at an obtuse corner and a quarter at the other two
-    obtuse = np.stack([c < 0 for c in cots], 1)  # cot < 0: the angle is obtuse
-    any_obtuse = obtuse.any(1)
-    for k in range(3):
-        # Voronoi part at corner k: (|e_k,k+1|^2 cot(angle k+2) + |e_k,k+2|^2 cot(angle k+1)) / 8
-        voronoi = (sq[(k + 2) % 3] * cots[(k + 2) % 3] + sq[(k + 1) % 3] * cots[(k + 1) % 3]) / 8.0
-        part = np.where(any_obtuse, np.where(obtuse[:, k], area / 2.0, area / 4.0), voronoi)
-        np.add.at(m, f[:, k], part)
-    return rows, cols, w, m
-
-
-def _neighbour_table(n: int, rows, cols, *ws):
-    """Sum duplicate (i, j) weights and pack each vertex's neighbours into a padded table,
-    slot-major: (neighbours (K, n) int32 padded with the vertex itself, then per weight
-    array in `ws` its (K, n) table padded with 0)."""
-    key = rows * n + cols
-    uniq, inverse = np.unique(key, return_inverse=True)
-    r, c = uniq // n, uniq % n  # sorted by row, then column
-    degree = np.bincount(r, minlength=n)
-    k = int(degree.max())
-    start = np.concatenate([[0], np.cumsum(degree)[:-1]])
-    slot = np.arange(len(r)) - start[r]
-    table = np.repeat(np.arange(n)[:, None], k, axis=1)
-    table[r, slot] = c
-    out = [np.ascontiguousarray(table.T, np.int32)]
-    for w in ws:
-        weights = np.zeros((k, n))
-        weights[slot, r] = np.bincount(inverse, weights=w, minlength=len(uniq))
-        out.append(weights)
-    return tuple(out)
-
-
-def directional_weights(v: np.ndarray, f: np.ndarray, direction):
-    """COO (rows, cols, weights) of the directional part of the anisotropic operator: per
-    triangle T, the finite-element term -A_T (grad phi_i . t)(grad phi_j . t) of the tensor
-    t t^T, t the unit direction projected into T's plane (the mean of its corners'
-    directions for a per-vertex field). A triangle where the projection vanishes (the
-    direction along its normal) gets half its in-plane identity instead, the isotropic mean."""
-    d = np.asarray(direction, np.float64)
-    if d.shape == (3,):
-        d = np.broadcast_to(d, (len(v), 3))
-    if d.shape != (len(v), 3) or not np.isfinite(d).all():
-        raise ValueError(f"Mesh.direction must be a 3-vector or one finite 3-vector per vertex, shape ({len(v)}, 3) "
-                         f"(got {np.shape(direction)})")
-    p = [v[f[:, k]] for k in range(3)]
-    normal = np.cross(p[1] - p[0], p[2] - p[0])
-    area2 = np.linalg.norm(normal, axis=1)  # twice the area
-    nhat = normal / area2[:, None]
-    # grad phi_k = nhat x (edge opposite k, oriented k+1 -> k+2) / (2 A)
-    grads = [np.cross(nhat, p[(k + 2) % 3] - p[(k + 1) % 3]) / area2[:, None] for k in range(3)]
-    t = d[f].mean(1)
-    t = t - (t * nhat).sum(1, keepdims=True) * nhat
-    length = np.linalg.norm(t, axis=1)
-    ok = length > 1e-6 * np.maximum(np.linalg.norm(d[f].mean(1), axis=1), 1e-300)
-    t = np.where(ok[:, None], t / np.where(ok, length, 1.0)[:, None], 0.0)
-    area = area2 / 2
-    rows, cols, w = [], [], []
-    for a in range(3):
-        for b in range(3):
-            if a == b:
-                continue
-            along = (grads[a] * t).sum(1) * (grads[b] * t).sum(1)
-            iso = 0.5 * (grads[a] * grads[b]).sum(1)  # half the in-plane identity
-            rows.append(f[:, a])
-            cols.append(f[:, b])
-            w.append(-area * np.where(ok, along, iso))
-    return np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
-
-
-def weight_matrix(table, weights):
-    """The (V, V) sparse matrix W of the weights w_ij from slot-major tables (K, V)."""
-    import scipy.sparse as sp
-
-    n = table.shape[1]
-    rows = np.tile(np.arange(n), table.shape[0])
-    return sp.csr_matrix((np.ravel(weights), (rows, np.ravel(table))), shape=(n, n))
-
-
-def largest_eigenvalue(table, weights, inverse_mass) -> float:
-    """Largest eigenvalue of -L = M^-1 (D - W) (Lanczos on the symmetric form), in the
-    mesh's length^-2, times `SAFETY`, capped by the Gershgorin bound (see the module)."""
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import eigsh
-
-    w = weight_matrix(table, weights)
-    d = np.asarray(w.sum(1)).ravel()
-    s = sp.diags(np.sqrt(inverse_mass))
-    sym = s @ (sp.diags(d) - w) @ s
-    gershgorin = float(np.max(inverse_mass * (np.abs(weights).sum(0) + np.abs(d))))
-    try:
-        lam = float(eigsh(sym, k=1, which="LA", tol=1e-6, maxiter=5000, return_eigenvectors=False)[0])
-    except Exception:  # no convergence: the bound that holds for every matrix
-        return gershgorin
-    return min(SAFETY * lam, gershgorin)
 
 
 def check_uv_layout(uv, uv_faces, faces):
@@ -328,13 +208,13 @@ class Mesh(AbstractDomain):
                 raise ValueError(f"Mesh: {int((m <= 0).sum())} vertices have no positive area")
             inv = 1.0 / m
             if direction is None:
-                table, w = _neighbour_table(len(v), rows, cols, wc)
+                table, w = neighbour_table(len(v), rows, cols, wc)
                 wd = None
             else:
                 # the weights are linear in the tensor: w = across w_cot + (along - across) w_tt,
                 # w_tt on the same (i, j) pairs as the cotangent weights
                 dr, dc, dw = directional_weights(v, f, direction)
-                table, w, wd = _neighbour_table(len(v), np.concatenate([rows, dr]), np.concatenate([cols, dc]),
+                table, w, wd = neighbour_table(len(v), np.concatenate([rows, dr]), np.concatenate([cols, dc]),
                                                 np.concatenate([wc, 0.0 * dw]), np.concatenate([0.0 * wc, dw]))
             combined = w if wd is None else float(across) * w + (float(along) - float(across)) * wd
             rho = largest_eigenvalue(table, combined, inv)
@@ -378,18 +258,20 @@ class Mesh(AbstractDomain):
     def n_vertices(self) -> int:
         return int(self.vertices.shape[0])
 
-    def _weights(self, dtype):
-        """The weights (K, V) of the operator in `dtype`, the anisotropy's parts combined."""
+    def _arrays(self, dtype):
+        """(weights, neighbours, inverse masses) of the operator, the weights and masses in
+        `dtype` and the anisotropy's parts combined."""
         w = self.weights
         if self.directional is not None:  # the tensor along t t^T + across (I - t t^T)
             w = self.across * w + (self.along - self.across) * self.directional
-        return w.astype(dtype)
+        w = w.astype(dtype)
+        # the indices were checked at construction, so the gathers may promise to be in bounds
+        return w, self.neighbours, self.inverse_mass.astype(dtype)
 
     def _operator(self, x):
         x = jnp.asarray(x)
-        w = self._weights(x.dtype if jnp.issubdtype(x.dtype, jnp.floating) else self.weights.dtype)
-        # the indices were checked at construction, so the gathers may promise to be in bounds
-        return apply_operator(x, w, self.neighbours, self.inverse_mass.astype(w.dtype))
+        dtype = x.dtype if jnp.issubdtype(x.dtype, jnp.floating) else self.weights.dtype
+        return apply_operator(x, *self._arrays(dtype))
 
     # The loop's layout: on the CPU, species that pair up (an even number, of a real dtype
     # with a complex counterpart) are carried packed as complex pairs, which makes the step
@@ -408,8 +290,7 @@ class Mesh(AbstractDomain):
 
     def diffusion(self, carried, rates):
         if jnp.iscomplexobj(carried):
-            w = self._weights(jnp.real(carried).dtype)
-            op = gathered_packed(carried, w, self.neighbours, self.inverse_mass.astype(w.dtype))
+            op = gathered_packed(carried, *self._arrays(jnp.real(carried).dtype))
         else:
             op = self._operator(carried)
         # the step shapes each species' rate for one spatial axis: (1,) or (vertices,)

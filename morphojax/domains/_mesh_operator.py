@@ -52,8 +52,12 @@ def unpack_pairs(packed):
 def _unpacked_species(packed):
     # The species one by one: a stack of these, rather than a reshape of whole real and
     # imaginary arrays, is what XLA folds away when the step reads a species back.
-    pairs = [packed] if packed.ndim == 1 else list(packed)
-    return [part for pair in pairs for part in (jnp.real(pair), jnp.imag(pair))]
+    return [part for pair in _pairs(packed) for part in _real_and_imaginary(pair)]
+
+
+def _pairs(packed):
+    """The packed pairs' rows (V,): the array itself for one pair."""
+    return [packed] if packed.ndim == 1 else list(packed)
 
 
 def gathered_fused(x, weights, neighbours, inverse_mass):
@@ -76,8 +80,7 @@ def gathered_apart(x, weights, neighbours, inverse_mass):
 def gathered_packed(packed, weights, neighbours, inverse_mass):
     """L x of the species packed by `pack_pairs`, read pair by pair: a list of 2P arrays (V,),
     one per species (the step takes its diffusion terms species by species)."""
-    pairs = [packed] if packed.ndim == 1 else list(packed)
-    reads = [g for pair in pairs for g in _real_and_imaginary(_gather(pair, neighbours))]
+    reads = [g for pair in _pairs(packed) for g in _real_and_imaginary(_gather(pair, neighbours))]
     return [_neighbour_sum(g, s, weights) * inverse_mass for g, s in zip(reads, _unpacked_species(packed))]
 
 
