@@ -4,7 +4,8 @@ The same forward-Euler step (Gray-Scott, Pearson's F = 0.0545, k = 0.062, Du = 0
 Dv = 0.105, clamped at 0, dt = 1) on icospheres whose edge is about one unit: morphojax's
 `simulate(..., domain=mj.Mesh)` (the cotangent operator as a gather and row sum, fused with
 the reaction in one `lax.scan`) and tests/mesh_oracle.py's `gray_scott_run` (two SciPy CSR
-products per step, the operator assembled from the same mesh arrays). Reports vertex-steps
+products per step, the operator assembled from the same mesh arrays, all in float32 like
+the run: a float64 port would run 25-35% slower and flatter the ratio). Reports vertex-steps
 per second and the ratio, timed in the same worker; every figure is the median over several
 fresh processes (see _harness.py). For context, paper 004 (Lundelius) reports 0.127 s per
 iteration of its NumPy Gray-Scott on a 100 x 100 grid (10,000 cells: 7.9e4 cell-steps/s).
@@ -44,10 +45,12 @@ def worker(subdivisions: int, steps: int) -> dict:
     t_jax = timeit(run, min_time=1.0) / steps
     wm = weight_matrix(np.asarray(mesh.neighbours), np.asarray(mesh.weights, np.float32))
     lap = (sp.diags(np.asarray(mesh.inverse_mass)) @ (wm - sp.diags(np.asarray(wm.sum(1)).ravel()))).tocsr()
-    lap = lap.astype(np.float32)
     u0, v0 = (np.asarray(a) for a in state.arrays())
     np_steps = max(10, steps // 10)
-    t_np = timeit(lambda: gray_scott_run(lap, u0, v0, FEED, KILL, DU, DV, DT, np_steps), min_time=1.0) / np_steps
+    # the port computes in the run's dtype (float32), as morphojax does
+    port = lambda: gray_scott_run(lap, u0, v0, FEED, KILL, DU, DV, DT, np_steps, dtype=u0.dtype)  # noqa: E731
+    assert all(a.dtype == u0.dtype == np.float32 for a in port())
+    t_np = timeit(port, min_time=1.0) / np_steps
     return {"subdivisions": subdivisions, "vertices": n, "jax": n / t_jax, "numpy": n / t_np}
 
 

@@ -71,10 +71,13 @@ def laplacian(vertices, faces, mass="voronoi"):
     return sp.diags(1.0 / m.diagonal()) @ (-k)
 
 
-def gray_scott_run(lap, u, v, feed, kill, du, dv, dt, steps):
+def gray_scott_run(lap, u, v, feed, kill, du, dv, dt, steps, dtype=np.float64):
     """Forward Euler on Gray-Scott with the sparse operator `lap`, clamped at 0 (morphojax's
-    default lower limit)."""
-    u, v = np.array(u, float), np.array(v, float)
+    default lower limit), computed in `dtype` throughout: the operator and both species are
+    cast to it, and the parameters are Python floats, which NumPy applies in the arrays'
+    dtype. A benchmark passes the dtype of the run it is compared with."""
+    lap = lap.astype(dtype, copy=False)
+    u, v = np.array(u, dtype), np.array(v, dtype)
     for _ in range(steps):
         uvv = u * v * v
         u, v = (np.maximum(u + dt * (-uvv + feed * (1 - u) + du * (lap @ u)), 0.0),
