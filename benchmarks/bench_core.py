@@ -40,7 +40,7 @@ def worker(n: int, steps: int) -> dict:
     def oracle_steps(k):
         a, b = a0.astype(np.float32), b0.astype(np.float32)
         for _ in range(k):
-            da, db = oracle.turing_rates(a, b, R, S)
+            da, db = oracle.turing_rates(a, b, R, S, dtype=np.float32)  # the run's dtype
             a, b = np.maximum(a + DT * da, 0), np.maximum(b + DT * db, 0)
 
     k_np = max(3, min(200, int(2e6 / (n * n))))

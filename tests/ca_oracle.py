@@ -34,17 +34,19 @@ def offsets(radius, dim, neighbourhood):
 
 
 def count(indicator, offs):
-    """For every cell, how many of the cells at `cell + o` (periodic) are set."""
-    total = np.zeros(indicator.shape, np.int64)
+    """For every cell, how many of the cells at `cell + o` (periodic) are set, in the
+    indicator's integer dtype."""
+    total = np.zeros(indicator.shape, indicator.dtype)
     for o in offs:
         total += np.roll(indicator, shift=tuple(-x for x in o), axis=tuple(range(indicator.ndim)))
     return total
 
 
-def young_step(cells, species, neighbourhood="disc", include_self=False):
+def young_step(cells, species, neighbourhood="disc", include_self=False, counts=np.int64):
     """One synchronous update of Young's K-species automaton (paper 002 eqs. 1-4).
 
-    species: list of (r_act, r_inh, w_act, w_inh) as Python numbers.
+    species: list of (r_act, r_inh, w_act, w_inh) as Python numbers; counts: the integer
+    dtype of the neighbour counts and fields (a benchmark passes the one morphojax uses).
     """
     cells = np.asarray(cells)
     k, dim = len(species), cells.ndim
@@ -54,7 +56,7 @@ def young_step(cells, species, neighbourhood="disc", include_self=False):
         den = den * f.denominator // math.gcd(den, f.denominator)
     fields = []
     for j, (r_act, r_inh, w_act, w_inh) in enumerate(species):
-        ind = (cells == j).astype(np.int64)
+        ind = (cells == j).astype(counts)
         act = set(offsets(r_act, dim, neighbourhood))
         ring = set(offsets(r_inh, dim, neighbourhood)) - act
         n_act = count(ind, sorted(act)) + (ind if include_self else 0)
