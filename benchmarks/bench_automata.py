@@ -21,7 +21,8 @@ references run in the same process: the test oracle `tests/ca_oracle.py` (one np
 per neighbour offset, exact integers) and a vectorised NumPy FFT port (FFT convolution
 rounded to integers: how one would write it in NumPy). Both compute in morphojax's dtypes,
 int32 counts and float32 transforms (NumPy 2 transforms float32 in single precision): in
-int64 and float64 they ran 1.2-1.5x slower, which flattered the ratios. Slow references
+int64 the oracle ran 1.3-3.6x slower and in float64 the port about 1.3-1.5x, which flattered
+the ratios (benchmarks/results/bench_automata.md). Slow references
 are timed over fewer steps and scaled, as marked in the table; their results are
 checked equal to morphojax's over the steps they ran.
 """

@@ -5,7 +5,7 @@ Dv = 0.105, clamped at 0, dt = 1) on icospheres whose edge is about one unit: mo
 `simulate(..., domain=mj.Mesh)` (the cotangent operator as a gather and row sum, fused with
 the reaction in one `lax.scan`) and tests/mesh_oracle.py's `gray_scott_run` (two SciPy CSR
 products per step, the operator assembled from the same mesh arrays, all in float32 like
-the run: a float64 port would run 25-35% slower and flatter the ratio). Reports vertex-steps
+the run: a float64 port runs 24-36% slower and flatter the ratio). Reports vertex-steps
 per second and the ratio, timed in the same worker; every figure is the median over several
 fresh processes (see _harness.py). For context, paper 004 (Lundelius) reports 0.127 s per
 iteration of its NumPy Gray-Scott on a 100 x 100 grid (10,000 cells: 7.9e4 cell-steps/s).
