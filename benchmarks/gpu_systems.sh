@@ -1,21 +1,38 @@
 #!/usr/bin/env bash
-# The GPU figures of the systems added after the first GPU run (bench_gpu.md): meshes, the
-# cellular Potts model, the lattice domains and the cell simulator, on one lent GPU machine
-# with no install (its image has jax with CUDA). Logs go to $OUT (default: ./gpu_out).
+# GPU figures on one lent GPU machine with no install (its image has jax with CUDA), logs in
+# $OUT (default: ./gpu_out), in one of two sets:
+# - systems (the default): the systems added after the first GPU run (bench_gpu.md): meshes,
+#   the cellular Potts model, the lattice domains and the cell simulator;
+# - fair: the ratios whose baselines were corrected to morphojax's dtypes (2026-11-26: the
+#   mesh port and the lattice oracle in float32, the automata oracle's counts in int32 and
+#   its FFT port in float32), logs prefixed fair_.
 #
-#     bash benchmarks/gpu_systems.sh
+#     bash benchmarks/gpu_systems.sh [systems|fair]
 set -u
+SET=${1:-systems}
+case "$SET" in
+  systems) P= ;;
+  fair) P=fair_ ;;
+  *) echo "usage: bash benchmarks/gpu_systems.sh [systems|fair]" >&2; exit 2 ;;
+esac
 OUT=${OUT:-gpu_out}; mkdir -p "$OUT"; OUT=$(cd "$OUT" && pwd)  # absolute: the runs start in benchmarks/
 export PYTHONPATH=$PWD:$PWD/tests:$PWD/benchmarks PYTHONUNBUFFERED=1
 { nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
-  python3 -c "import jax; print(jax.__version__, jax.devices())"; nproc; } > "$OUT/env.log" 2>&1
+  python3 -c "import jax, numpy, scipy; print(jax.__version__, numpy.__version__, scipy.__version__, jax.devices())"
+  nproc; } > "$OUT/${P}env.log" 2>&1
 cd benchmarks
-run() {  # run NAME TIMEOUT SCRIPT ARGS...: the log in $OUT/NAME.log, the exit status in env.log
+run() {  # run NAME TIMEOUT SCRIPT ARGS...: the log in $OUT/${P}NAME.log, the exit status in ${P}env.log
   local name=$1 limit=$2; shift 2
-  timeout "$limit" python3 "$@" > "$OUT/$name.log" 2>&1
-  echo "$name: exit $?" >> "$OUT/env.log"
+  timeout "$limit" python3 "$@" > "$OUT/$P$name.log" 2>&1
+  echo "$name: exit $?" >> "$OUT/${P}env.log"
 }
-run mesh 120 bench_mesh.py --repeats 2 --subdivisions 5 6 7
-run potts 100 bench_potts.py --repeats 2
-run domains 110 bench_domains.py --repeats 1 --sizes 250 1000
-run cells 150 bench_cells.py --repeats 1 --only scaling moray
+if [ "$SET" = systems ]; then
+  run mesh 120 bench_mesh.py --repeats 2 --subdivisions 5 6 7
+  run potts 100 bench_potts.py --repeats 2
+  run domains 110 bench_domains.py --repeats 1 --sizes 250 1000
+  run cells 150 bench_cells.py --repeats 1 --only scaling moray
+else
+  run mesh 150 bench_mesh.py --repeats 2 --subdivisions 5 7
+  run automata 200 bench_automata.py --repeats 7
+  run core 150 bench_core.py --repeats 2 --sizes 250 512 1024
+fi
