@@ -7,7 +7,8 @@
     result.render("coat.png", size=1024)  # the fitted coat in the photo's colours
     result.save_json("fit.json"); result.preview("fit.png")
 
-How it works (and why): see `fitting._fit` (stages), `fitting._stats` (statistics),
+How it works (and why): see `fitting._pipeline` (the stages, top to bottom), `fitting._verdict`
+(the held-out verdict), `fitting._fit` (one family's fit), `fitting._stats` (statistics),
 `fitting._simulator` (forward model, time step, truncated gradients) and the README section
 "Fitting". In short: statistics are compared in units of their seed-to-seed noise, averaged
 over a few vmapped seeds; a coarse vmapped design finds the basin; Optimistix refines it with
@@ -18,7 +19,10 @@ differentiated); Nelder-Mead takes over when gradients do not help.
 
 from ._auto import ORIENTED_COHERENCE, penalised
 from ._families import FAMILIES, Family, family, stripe_angle
-from ._fit import DEFAULTS, METHODS, FitResult, fit, gradient_descent, progress_default
+from ._fit import METHODS, gradient_descent
+from ._pipeline import DEFAULTS, fit, progress_default
+from ._result import FitResult
+from ._verdict import texture_distance
 from ._palette import colourise, kmeans, photo_palette
 from ._uncertainty import laplace_intervals
 from ._report import loss_curve, preview, region_stats
@@ -60,5 +64,6 @@ __all__ = [
     "residuals",
     "stats_vector",
     "stripe_angle",
+    "texture_distance",
     "texture_stats",
 ]

@@ -6,14 +6,20 @@ comparable), with two seeds; oriented families screen on the full lattice, since
 torus admits only the few stripe directions and spacings that close around it. The `top` families with the lowest penalised screening loss are
 then fitted in full and the best of those is returned.
 
-Ranking: a penalised synthetic likelihood. Every family's `score` is the distance between
-the target's and the fit's statistics with the config's fixed per-group noise scales (the
-same yardstick for every family; each family's own measured noise would make a noisier
+Screening ranks by a penalised synthetic likelihood. Every family's `score` is the distance
+between the target's and the fit's statistics with the config's fixed per-group noise scales
+(the same yardstick for every family; each family's own measured noise would make a noisier
 family look better). The distance sums about one unit of squared noise per statistics group,
 so it plays the part of -2 log L; the penalty is BIC's k log(n) with k the number of fitted
-parameters and n the number of statistics groups (the number of independent statistics the
-loss counts): penalised = score + k log(n). It matters only between families whose fits are
-about equally close, and then prefers the one with fewer parameters.
+parameters and n the number of statistics groups: penalised = score + k log(n). A family
+whose every design point is grid-scale screens last, rejected.
+
+The full fits are ranked by how well they predict what they were not fitted to: the
+held-out distance of `fitting._verdict` (the fit's samples against the tile of the target
+kept apart), with rejected fits (degenerate coats: grid-scale, uniform, unstable, off the
+target's wavelength) after every fit that is not. The training loss decided before, and
+grid-scale noise from the leopard family beat the only family that draws stripes on a tiger
+(its statistics sat nearer noise than regular stripes).
 
 Oriented families (`anisotropic-turing`) apply to oriented targets only: they join the
 screen when the target's stripe coherence (`fitting.stripe_angle`, structure tensor, 0 for
@@ -21,16 +27,12 @@ an isotropic texture, 1 for straight stripes) is at least ORIENTED_COHERENCE. Is
 64x64 Turing fields measure 0.14 and spotted photo crops 0.11-0.27, so the screen pays for
 them only where a direction is there to fit; `families=[...]` overrides the choice.
 
-A striped target is judged by its stripes first. When the target's coherence reaches
-STRIPED_COHERENCE, the best-screened oriented family is always fitted in full (besides the
-`top`), and a full fit whose sample does not show the target's stripes (coherence within
-STRIPE_MATCH of the target's, direction within STRIPE_ANGLE of its direction) ranks after
-every fit that does, whatever its score. On the zebra the texture statistics alone ranked
-Bard's isotropic labyrinth (coherence about 0.15) above stripes at the photo's angle: the
-curved, uneven stripes of a photo sit closer to a net in the autocorrelation, edge and
-pyramid groups than to regular stripes, while the one orientation group adds little. A
-viewer sees the direction first; the rule says so, and each ranking row records the fit's
-`coherence` and whether it `shows_stripes`.
+A striped target gets a family that draws stripes in the running: when the target's
+coherence reaches STRIPED_COHERENCE, the best-screened oriented family is always fitted in
+full (besides the `top`). Whether a fit shows the target's stripes (coherence within
+STRIPE_MATCH of the target's, direction within STRIPE_ANGLE) is recorded in each ranking row
+(`coherence`, `shows_stripes`); the held-out distance, whose orientation group sees the
+stripes' direction, decides the order.
 
 Families have different model structures (species, phases, growth), so they are fitted one
 after the other; within a family the design points and seeds are vmapped batches, and the
@@ -44,6 +46,8 @@ import math
 import numpy as np
 
 from ._families import FAMILIES, stripe_angle
+from ._fit import fit_one
+from ._verdict import GRID_SCALE
 
 ORIENTED_COHERENCE = 0.3
 STRIPED_COHERENCE = 0.5  # a target this coherent is striped: its fits must show the stripes
@@ -88,10 +92,9 @@ def shows_stripes(field, target_stripes) -> tuple[bool, float]:
     return bool(coherence >= target_stripes[1] - STRIPE_MATCH and off <= STRIPE_ANGLE), coherence
 
 
-def fit_auto(target, names, *, families=None, top=2, progress, **options):
-    """Screen, fit the best `top` in full, rank; see the module docstring."""
-    from ._fit import fit_one
-
+def fit_auto(target, names, *, families=None, top=2, progress, assess, **options):
+    """Screen, fit the best `top` in full, rank; see the module docstring. `assess` sets a
+    full fit's held-out report and rejection (`fitting._pipeline`)."""
     chosen = families_for(target.field, families)
     if int(top) < 1:
         raise ValueError(f"top must be an integer >= 1 (got {top!r})")
@@ -106,13 +109,18 @@ def fit_auto(target, names, *, families=None, top=2, progress, **options):
         # oriented families screen on the full lattice: a small torus admits only a few
         # stripe directions and spacings (those that close around it), which ranked the
         # zebra's stripes below labyrinths on 32x32
-        opts = {**options, "shape": tuple(options["shape"]) if fam.oriented else half, "seeds": 2, "rounds": 0, "keep": 1, "max_steps": 0,
-                "intervals": False, "n_design": 6 * len(mine),
+        opts = {**options, "shape": tuple(options["shape"]) if fam.oriented else half, "seeds": 2, "rounds": 0,
+                "keep": 1, "max_steps": 0, "intervals": False, "n_design": 6 * len(mine),
                 "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
         res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)
+        lam = res.config["wavelength"]
         screened.append({"family": f, "score": res.score, "penalised": penalised(res.score, len(mine), cfg),
-                         "params": res.params, "k": len(mine), "stage": "screen", "seconds": res.timings["total"]})
-    screened.sort(key=lambda r: r["penalised"] if np.isfinite(r["penalised"]) else math.inf)
+                         "params": res.params, "k": len(mine), "stage": "screen", "seconds": res.timings["total"],
+                         "rejected": f"wavelength {lam:.1f} cells: grid-scale at every design point"
+                         if lam < GRID_SCALE else None})
+    # a family whose every design point is grid-scale screens last
+    screened.sort(key=lambda r: (r["rejected"] is not None,
+                                 r["penalised"] if np.isfinite(r["penalised"]) else math.inf))
     stripes = stripe_angle(target.field)
     to_fit = screened[: int(top)]
     oriented = [r for r in screened if FAMILIES[r["family"]].oriented]
@@ -123,20 +131,20 @@ def fit_auto(target, names, *, families=None, top=2, progress, **options):
         fam = FAMILIES[row["family"]]
         mine = _names_for(fam, names)
         opts = {**options, "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
-        res = fit_one(target, row["family"], mine, progress=progress, **opts)
+        res = assess(fit_one(target, row["family"], mine, progress=progress, **opts))
         full.append((*shows_stripes(res.sample, stripes), penalised(res.score, len(mine), cfg), res))
-    # fits that show a striped target's stripes first, then by penalised score
-    full.sort(key=lambda item: (not item[0], item[2] if np.isfinite(item[2]) else math.inf))
+    # rejected fits last, then by the held-out distance
+    full.sort(key=lambda item: (item[-1].rejected is not None, item[-1].heldout["distance"]))
     ranking = [{"family": r.family, "loss": r.score, "penalised": p, "k": len(r.params), "params": r.params,
                 "fit_loss": r.loss, "stage": "full", "seconds": r.timings["total"], "coherence": c,
-                "shows_stripes": ok} for ok, c, p, r in full]
+                "shows_stripes": ok, "heldout": r.heldout["distance"], "convincing": r.convincing,
+                "rejected": r.rejected} for ok, c, p, r in full]
     done = {r["family"] for r in ranking}
     ranking += [{"family": r["family"], "loss": r["score"], "penalised": r["penalised"], "k": r["k"],
-                 "params": r["params"], "stage": "screen", "seconds": r["seconds"]}
+                 "params": r["params"], "stage": "screen", "seconds": r["seconds"], "rejected": r["rejected"]}
                 for r in screened if r["family"] not in done]
     best = full[0][-1]
     best.ranking = ranking
     best.timings["auto_screen"] = float(sum(r["seconds"] for r in screened))
-    best.timings["auto_total"] = float(sum(r["seconds"] for r in screened) + sum(item[-1].timings["total"]
-                                                                                   for item in full))
+    best.timings["auto_fits"] = float(sum(item[-1].timings["total"] for item in full))
     return best

@@ -31,7 +31,7 @@ def _pairs(items, what: str) -> dict:
 
 def register(subparsers) -> None:
     """Add the `fit` subcommand to an argparse subparsers object (its defaults are `fitting.DEFAULTS`)."""
-    from ._fit import DEFAULTS as D
+    from ._pipeline import DEFAULTS as D
     from ._families import FAMILIES
 
     p = subparsers.add_parser("fit", help="fit model parameters to a photo's texture statistics",
@@ -75,8 +75,10 @@ def register(subparsers) -> None:
                    help="output grey PNG: one simulated field of the fit at lattice resolution, pigment bright")
     p.add_argument("--render", type=Path, default=None, help="output picture: the fitted coat at 1024 px, photo colours")
     p.add_argument("--progress", dest="progress", action="store_const", const=True, default=D["progress"],
-                   help="show the progress bar (default: when attached to a terminal)")
-    p.add_argument("--no-progress", dest="progress", action="store_const", const=False)
+                   help="show the progress bar (default: a bar in a terminal, one log line per stage on stderr "
+                        "otherwise)")
+    p.add_argument("--no-progress", dest="progress", action="store_const", const=False,
+                   help="print nothing while fitting")
     p.set_defaults(func=run)
 
 
@@ -85,7 +87,11 @@ CLI_TO_API = {"design": "n_design"}
 
 
 def run(args) -> int:
+    import time
+
     import fitting
+
+    t_wall = time.perf_counter()
 
     crop = _floats(args.crop, 4, "--crop") if args.crop else None
     fixed = {k: float(v) for k, v in _pairs(args.fixed, "--fixed").items()}
@@ -109,9 +115,13 @@ def run(args) -> int:
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             write(path)
-    print(json.dumps({"family": result.family, "params": result.params, "intervals": result.intervals,
-                      "undetermined": result.undetermined, "loss": result.loss, "noise_floor": result.noise_floor,
-                      "cell_pixels": target.cell_pixels, "seconds": round(result.timings["total"], 1),
-                      "json": str(args.json), "preview": str(args.preview) if args.preview else None}))
+    stages = {k: round(v, 1) for k, v in result.timings.items() if k != "total"}
+    print(json.dumps({"family": result.family, "convincing": result.convincing, "verdict": result.verdict,
+                      "heldout": {k: result.heldout.get(k) for k in ("distance", "floor", "noise", "held_out")},
+                      "params": result.params, "intervals": result.intervals, "undetermined": result.undetermined,
+                      "correlated": result.correlated, "loss": result.loss, "noise_floor": result.noise_floor,
+                      "cell_pixels": target.cell_pixels, "seconds": round(time.perf_counter() - t_wall, 1),
+                      "stages": stages, "json": str(args.json),
+                      "preview": str(args.preview) if args.preview else None}))
     print(result.describe())
     return 0

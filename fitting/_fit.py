@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -35,13 +34,14 @@ import morphojax as mj
 
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
-from ._stats import StatsConfig, distance, mean_stats, noise_of, residuals, texture_stats
+from ._stats import distance, mean_stats, noise_of, residuals, texture_stats
 from ._result import FitResult
-from ._target import Target, load_target
+from ._verdict import GRID_SCALE
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 LIMIT_SCAN = 48  # points of a fitted limit's scan, about 2% of its bounds apart
 BAND_RISE = 1.1  # a scan's minimum is a band when both its neighbours score 10% more (`_is_band`)
+DEGENERATE_PENALTY = 1e6  # added to a design point's loss when its pattern is grid-scale
 
 
 def _as_template(model, shape):
@@ -80,10 +80,10 @@ def _design_batch(sim, space, cfg, thetas, keys, tstats):
 
 @eqx.filter_jit
 def _seed_run(sim, space, cfg, theta, keys):
-    """Per-seed statistics at theta and the first seed's field (one program serves the
-    noise, the noise floor, the sample and, averaged, the fit's statistics)."""
+    """Per-seed statistics at theta and every seed's field (one program serves the noise,
+    the noise floor, the samples and, averaged, the fit's statistics)."""
     fields = jax.vmap(lambda k: sim.run(space.as_dict(theta), k))(keys)
-    return jax.vmap(lambda f: texture_stats(f, cfg))(fields), fields[0]
+    return jax.vmap(lambda f: texture_stats(f, cfg))(fields), fields
 
 
 def _mean_at(sim, space, cfg, theta, keys) -> dict:
@@ -91,10 +91,11 @@ def _mean_at(sim, space, cfg, theta, keys) -> dict:
     return jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
 
 
-def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> float:
-    """The local stage's loss at z, through `_seed_run` (no separate compiled program)."""
+def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
+    """The local stage's (loss, wavelength) at z, through `_seed_run` (no separate compiled program)."""
     theta = space.from_free(jnp.asarray(z, jnp.float32))
-    return float(distance(_mean_at(sim, space, cfg, theta, keys), tstats, cfg, noise))
+    mean = _mean_at(sim, space, cfg, theta, keys)
+    return float(distance(mean, tstats, cfg, noise)), float(mean["wavelength"])
 
 
 
@@ -128,33 +129,6 @@ class _Recorder:
             self.bar.update(self.stage, float(loss))
 
 
-# One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
-DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
-            "design_seeds": 2, "seed": 0, "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs",
-            "max_steps": 40, "binarise": True, "orientation": True, "progress": None}
-
-
-def progress_default() -> bool:
-    """`progress=None` means on when attached to a terminal or running in a notebook."""
-    import sys
-
-    try:
-        from IPython import get_ipython
-
-        shell = get_ipython()
-        if shell is not None and type(shell).__name__ == "ZMQInteractiveShell":
-            return True
-    except ImportError:
-        pass
-    return bool(getattr(sys.stderr, "isatty", lambda: False)())
-
-
-def _names(fit) -> list | None:
-    if fit is None:
-        return None
-    return list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
-
-
 def _resolve(model, names, shape):
     """(family or None, template, fitted names, family bounds) for a model argument."""
     from ._families import FAMILIES, family, family_of
@@ -171,72 +145,6 @@ def _resolve(model, names, shape):
                              "experiment name the parameters to fit, e.g. fit=['ratio', 'scale']")
         names = list(fam.fit)
     return fam, template, names, (dict(fam.bounds) if fam is not None else {})
-
-
-def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bounds=None, shape=DEFAULTS["shape"],
-        steps: int | None = DEFAULTS["steps"], window: int | None = DEFAULTS["window"], seeds: int = DEFAULTS["seeds"],
-        design_seeds: int = DEFAULTS["design_seeds"],
-        seed: int = DEFAULTS["seed"], design: str = "lhs", n_design: int | None = DEFAULTS["n_design"],
-        rounds: int = DEFAULTS["rounds"], keep: int = DEFAULTS["keep"], method: str = DEFAULTS["method"],
-        max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
-        boundary: str = "wrap", species=None, batch_size: int = 8, noise_seeds: int = 8,
-        learning_rate: float = 0.05, length_scale: str | None = "family", progress: bool | None = DEFAULTS["progress"],
-        intervals: bool = True, families=None, top: int = 2, simulator: Simulator | None = None) -> FitResult:
-    """Fit parameters of `model` so its texture statistics match `target`'s.
-
-    Args:
-        target: a `Target` (see `load_target`), an image path, or a 2D array at lattice
-            resolution (normalised by its quantiles like a photo).
-        model: "auto" (screen every family, fit the best `top` in full, rank them; see
-            `fitting._auto`), a family name ("turing", "anisotropic-turing", "bard",
-            "gray-scott", "reinforcement", "young", "leopard"; `fitting.FAMILIES`), another
-            model name, a model, a one-species `YoungCA`, or an `Experiment` (growing and
-            multi-phase runs; see `Simulator` for names).
-        fit: names of the parameters to fit; None fits the family's defaults (with "auto",
-            names given apply to each family that has them).
-        fixed: parameters held at given values; bounds: {name: (low, high)} overriding the
-            family's (or `fitting.DEFAULT_BOUNDS`).
-        shape: simulated lattice (rows, cols); steps / window: steps per simulation and how
-            many of the last are differentiated (None: the family's).
-        seeds: simulations averaged per evaluation (vmapped); design_seeds: the global
-            stage's (at most `seeds`: it only has to find the basin, and it is most of the
-            simulations); seed: the fit's random seed.
-        design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
-            n_design points (default 12 per fitted parameter), a scan of each fitted limit
-            (`LIMIT_SCAN` points across its bounds), then `rounds` Latin hypercubes in boxes
-            (halving each round; two scan steps wide along a limit whose scan found a narrow
-            band) around the best `keep`, which start local searches.
-        method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
-            iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
-        stats: which statistics and how they are weighted (default `StatsConfig()`: pigment
-            maps, with orientation).
-        length_scale: the fitted parameter that moves the wavelength ("family": the family's
-            own, e.g. Turing's `scale`); the global stage moves each design point along it
-            to the target's dominant wavelength (None to disable).
-        progress: a progress bar (None: on in terminals and notebooks).
-        intervals: compute the Laplace credible intervals (`fitting.laplace_intervals`).
-        families, top: for "auto", the families screened (default all) and how many are
-            fitted in full.
-
-    Returns:
-        `FitResult` (see its docstring); `result.save_json(path)`, `result.preview(path)`.
-    """
-    stats = StatsConfig() if stats is None else stats
-    progress = progress_default() if progress is None else bool(progress)
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
-    if not isinstance(target, Target):  # a path, or an array already at lattice resolution
-        target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
-    options = dict(fixed=fixed, bounds=bounds, shape=shape, steps=steps, window=window, seeds=seeds, seed=seed,
-                   design_seeds=design_seeds, design=design, n_design=n_design, rounds=rounds, keep=keep,
-                   method=method, max_steps=max_steps, fallback=fallback, stats=stats, boundary=boundary,
-                   species=species, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
-                   length_scale=length_scale, intervals=intervals)
-    if isinstance(model, str) and model == "auto":
-        from ._auto import fit_auto
-
-        return fit_auto(target, _names(fit), families=families, top=top, progress=progress, **options)
-    return fit_one(target, model, _names(fit), progress=progress, simulator=simulator, **options)
 
 
 def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds, seed, design_seeds, design,
@@ -278,13 +186,13 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(target.field, jnp.float32), stats))
     keys = jax.random.split(jax.random.key(seed + 1), seeds)
 
-    from ._progress import Progress
+    from ._progress import make_progress
 
     label = stage_prefix + (fam.name if fam is not None else "fit")
     moves = length_scale in names or stripes is not None
     total = (n_design * (1 + int(rounds) + (1 if moves else 0)) + LIMIT_SCAN * len(space.limits)
              + keep * max(max_steps, 1) * 2)
-    bar = Progress(label, total) if progress else None
+    bar = make_progress(progress, label, total)
     rec = _Recorder(bar)
     _RECORDERS.append(rec)
     try:
@@ -318,6 +226,8 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
                for i in range(0, len(padded), batch_size)]
         vals = np.concatenate([np.asarray(o[0]) for o in out])[: len(thetas)]
         lams = np.concatenate([np.asarray(o[1]) for o in out])[: len(thetas)]
+        # a grid-scale point ranks after every point that is not (`fitting._verdict`)
+        vals = np.where(lams < GRID_SCALE, vals + DEGENERATE_PENALTY, vals)
         return np.where(np.isfinite(vals), vals, np.inf), lams
 
     length = names.index(length_scale) if length_scale in names else None
@@ -342,18 +252,18 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
                 moved[:, angle] = np.clip(low + (stripes - low) % np.pi, low, space.high[angle])
             for value, theta in zip(vals, thetas):
                 rec(value, space.to_free(theta))
-            vals2, _ = run_batch(moved)
+            vals2, lams2 = run_batch(moved)
             better = vals2 < vals
             thetas = np.where(better[:, None], moved, thetas)
-            vals = np.where(better, vals2, vals)
+            vals, lams = np.where(better, vals2, vals), np.where(better, lams2, lams)
             unit_points = space.to_unit(thetas)
         for value, theta in zip(vals, thetas):
             rec(value, space.to_free(theta))
-        return unit_points, thetas, vals
+        return unit_points, thetas, vals, lams
 
     rng = np.random.default_rng(seed)
     rec.stage = "design"
-    all_unit, thetas, losses = evaluate(space.design(n_design, design, seed), move=True)
+    all_unit, thetas, losses, wavelengths = evaluate(space.design(n_design, design, seed), move=True)
     widest = np.full(space.size, np.inf)  # the rounds' boxes' half-width along each coordinate, at most
     for i in space.limits:
         # A limit acts only where it binds, and a target made near the limit that just lets
@@ -365,12 +275,13 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         rec.stage = "limits"
         line = np.repeat(all_unit[np.argmin(losses)][None], LIMIT_SCAN, axis=0)
         line[:, i] = (np.arange(LIMIT_SCAN) + 0.5) / LIMIT_SCAN
-        u_new, th_new, l_new = evaluate(line, move=False)
+        u_new, th_new, l_new, w_new = evaluate(line, move=False)
         k = int(np.argmin(l_new))
         if l_new[k] < losses.min() and _is_band(l_new, k):  # the rounds stay in the band
             widest[i] = 2.0 / LIMIT_SCAN
         all_unit = np.concatenate([all_unit, u_new])
         thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
+        wavelengths = np.concatenate([wavelengths, w_new])
     rec.stage = "design"
     half = 0.25
     for _ in range(int(rounds)):
@@ -380,22 +291,25 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
             box = space.design(max(2, n_design // keep), "lhs", int(rng.integers(1 << 30)))
             local.append(np.clip(u + (2 * box - 1) * np.minimum(half, widest), 1e-4, 1 - 1e-4))
         # the boxes surround moved points already at the target's wavelength: not moved again
-        u_new, th_new, l_new = evaluate(np.concatenate(local), move=False)
+        u_new, th_new, l_new, w_new = evaluate(np.concatenate(local), move=False)
         all_unit = np.concatenate([all_unit, u_new])
         thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
+        wavelengths = np.concatenate([wavelengths, w_new])
         half *= 0.5
     order = np.argsort(losses)
-    design_rows = [{**{n: float(thetas[i, j]) for j, n in enumerate(names)}, "loss": float(losses[i])}
-                   for i in order]
+    design_rows = [{**{n: float(thetas[i, j]) for j, n in enumerate(names)}, "loss": float(losses[i]),
+                    "wavelength": float(wavelengths[i])} for i in order]
     timings["design"] = time.perf_counter() - t0
     if screen_only:  # `auto`'s screening: the design's best, scored with the config's noise scales
         best = order[0]
         params = {n: float(thetas[best, j]) for j, n in enumerate(names)}
         timings["total"] = time.perf_counter() - t_start
-        return FitResult(params=params, model=sim.build(params), loss=float(losses[best]), noise_floor=float("nan"),
+        score = float(losses[best]) - (DEGENERATE_PENALTY if wavelengths[best] < GRID_SCALE else 0.0)
+        return FitResult(params=params, model=sim.build(params), loss=score, noise_floor=float("nan"),
                          history=[{k: v for k, v in row.items() if k != "z"} for row in rec.rows], timings=timings,
                          stats={}, report={}, design=design_rows, fields={"target": np.asarray(target.field)},
-                         config={"fit": names, "screen": True}, target=target.describe(), score=float(losses[best]))
+                         config={"fit": names, "screen": True, "wavelength": float(wavelengths[best])},
+                         target=target.describe(), score=score)
 
     # ---- noise at the best design point -------------------------------------------------
     t0 = time.perf_counter()
@@ -415,14 +329,16 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         if max_steps == 0:  # no local search: the design's best is scored in the report
             finals.append((float("nan"), np.asarray(z0), "design", float("nan")))
             continue
-        start_loss = _loss_of(sim, space, stats, z0, keys, tstats, noise)
+        start_loss, start_lam = _loss_of(sim, space, stats, z0, keys, tstats, noise)
         z, used = _local(method, args, z0, max_steps, learning_rate, rec)
-        end_loss = _loss_of(sim, space, stats, z, keys, tstats, noise)
+        end_loss, end_lam = _loss_of(sim, space, stats, z, keys, tstats, noise)
         if fallback and method != "nelder-mead" and max_steps > 0 and not end_loss < 0.99 * start_loss:
             z_nm, _ = _local("nelder-mead", args, z0, max_steps, learning_rate, rec)
-            nm_loss = _loss_of(sim, space, stats, z_nm, keys, tstats, noise)
+            nm_loss, nm_lam = _loss_of(sim, space, stats, z_nm, keys, tstats, noise)
             if nm_loss < end_loss:
-                z, end_loss, used = z_nm, nm_loss, f"{used}->nelder-mead"
+                z, end_loss, end_lam, used = z_nm, nm_loss, nm_lam, f"{used}->nelder-mead"
+        if end_lam < GRID_SCALE <= start_lam:  # the search walked into grid-scale noise: keep its start
+            z, end_loss, used = z0, start_loss, f"{used} (ended grid-scale: kept the start)"
         finals.append((end_loss, np.asarray(z), used, start_loss))
     timings["local"] = time.perf_counter() - t0
 
@@ -437,24 +353,25 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         best_loss = float(distance(fit_stats, tstats, stats, noise))
         finals[0] = (best_loss, *finals[0][1:3], best_loss)
     floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
-    singles, sample = _seed_run(sim, space, stats, theta_best, floor_keys)
+    singles, samples = _seed_run(sim, space, stats, theta_best, floor_keys)
     floor_losses = np.array([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats,
                                             noise)) for i in range(len(floor_keys))])
     floor = float(np.mean(floor_losses))
-    sample = np.asarray(sample)
+    samples = np.asarray(samples)
+    sample = samples[0]
     from ._report import region_stats
 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
     score = float(distance(fit_stats, tstats, stats))
     timings["report"] = time.perf_counter() - t0
-    ivals, undetermined = {}, []
+    ivals, undetermined, correlated = {}, [], []
     if intervals:
         from ._uncertainty import interval_report
 
         t0 = time.perf_counter()
         rec.stage = "intervals"
         inflate = best_loss / floor if floor > 0 and np.isfinite(best_loss) else 1.0
-        ivals, undetermined = interval_report(sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate,
+        ivals, undetermined, correlated = interval_report(sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate,
                                               seed=seed, floor=floor, floor_losses=floor_losses)
         timings["intervals"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
@@ -470,8 +387,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     return FitResult(
         params=params, model=sim.build(params), loss=float(best_loss), noise_floor=floor, history=history,
         timings=timings, stats={"target": _tolist(tstats), "fit": _tolist(fit_stats), "noise": _tolist(noise)},
-        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample},
+        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample, "samples": samples},
         config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
+        correlated=correlated,
     )
 
 

@@ -42,7 +42,7 @@ def unit(x) -> np.ndarray:
 
 def describe(result) -> str:
     """The fit in words: family, parameters with intervals, undetermined ones, distance to the floor."""
-    parts = [f"family {result.family or '?'}:"]
+    parts = [result.verdict + "." if result.verdict else "", f"family {result.family or '?'}:"]
     for name, value in result.params.items():
         text = f"{name} = {value:.3g}"
         if name in result.intervals:
@@ -50,6 +50,8 @@ def describe(result) -> str:
             if np.isfinite(lo) and np.isfinite(hi):
                 text += f" (95% interval {lo:.3g} to {hi:.3g})"
         parts.append(text + ("," if name != list(result.params)[-1] else ";"))
+    if result.correlated:
+        parts.append(f"moving together: {', '.join(' and '.join(p) for p in result.correlated)};")
     if result.undetermined:
         parts.append(f"not determined by the target: {', '.join(result.undetermined)};")
     else:
@@ -57,7 +59,7 @@ def describe(result) -> str:
     if result.noise_floor > 0:
         parts.append(f"loss {result.loss:.3g} = {result.loss / result.noise_floor:.1f}x the noise floor "
                      f"({result.noise_floor:.3g}).")
-    return " ".join(parts)
+    return " ".join(p for p in parts if p)
 
 
 def _gray(x, size):

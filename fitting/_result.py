@@ -43,6 +43,12 @@ class FitResult:
     undetermined: list = dataclasses.field(default_factory=list)
     palette: list | None = None
     simulator: Any = dataclasses.field(default=None, repr=False)
+    # the verdict (`fitting._verdict`): convincing on the held-out tile, in words, the numbers
+    convincing: bool = False
+    verdict: str = ""
+    heldout: dict = dataclasses.field(default_factory=dict)
+    rejected: str | None = None  # why the fitted coat is degenerate, or None
+    correlated: list = dataclasses.field(default_factory=list)  # [[a, b], ...] moving together
 
     @property
     def sample(self) -> np.ndarray:
@@ -97,6 +103,8 @@ class FitResult:
             "params": self.params, "family": self.family, "loss": self.loss, "noise_floor": self.noise_floor,
             "loss_over_noise_floor": self.loss / self.noise_floor if self.noise_floor > 0 else None,
             "score": self.score if np.isfinite(self.score) else None,
+            "convincing": bool(self.convincing), "verdict": self.verdict, "heldout": self.heldout,
+            "rejected": self.rejected, "correlated": self.correlated,
             "ranking": self.ranking, "intervals": {k: list(v) for k, v in self.intervals.items()},
             "undetermined": list(self.undetermined), "summary": self.describe(), "palette": self.palette,
             "model": model, "target": self.target, "config": self.config, "timings": self.timings,

@@ -106,6 +106,27 @@ def laplace_intervals(jacobian, u_star, variances, level_z: float = Z95, flat: f
     return low, high, sd, flat_mask
 
 
+CORRELATED = 0.7  # parameters move together when the Laplace posterior's |correlation| reaches this
+
+
+def correlated_pairs(jacobian, variances, names, flat_mask) -> list:
+    """[[a, b], ...]: pairs of parameters whose Laplace posterior correlation (from the
+    information J^T Sigma^-1 J, pseudo-inverted) is at least CORRELATED in size; a flat
+    parameter (one the statistics do not see) pairs with nothing."""
+    J = np.asarray(jacobian, np.float64)
+    info = J.T @ (J / np.asarray(variances, np.float64)[:, None])
+    cov = np.linalg.pinv(info, hermitian=True)
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    pairs = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            if flat_mask[i] or flat_mask[j] or sd[i] <= 0 or sd[j] <= 0:
+                continue
+            if abs(cov[i, j] / (sd[i] * sd[j])) >= CORRELATED:
+                pairs.append([names[i], names[j]])
+    return pairs
+
+
 def undetermined_mask(low_u, high_u, flat_mask, span: float = 0.5):
     """Parameters whose interval covers more than `span` of the bounds, or that are flat."""
     return np.asarray(flat_mask) | ((np.asarray(high_u) - np.asarray(low_u)) > span)
@@ -182,7 +203,8 @@ def sample_quantile(floor: float, groups: int, floor_losses=None, level: float =
 
 def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04, inflate: float = 1.0,
                     seed: int = 0, floor: float = 0.0, floor_losses=None):
-    """({name: (low, high)} in natural units, [undetermined names]) at the fitted `theta`;
+    """({name: (low, high)} in natural units, [undetermined names], [correlated pairs]) at
+    the fitted `theta` (`correlated_pairs`);
     `inflate` (>= 1) multiplies the variances (loss / noise floor for a misspecified fit);
     `floor`, the fit's noise floor (the mean of `floor_losses`, single samples' losses),
     sets the region's absolute threshold (module docstring, `sample_quantile`)."""
@@ -200,6 +222,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     var = group_variances(tstats, cfg, len(keys)) * max(float(inflate), 1.0)
     scale = float(var[0])  # every component's variance: the loss in units of -2 log L
     low, high, sd, flat = laplace_intervals(J, u_star, var)
+    correlated = correlated_pairs(J, var, space.names, flat)
     target = np.asarray(stats_vector(tstats, cfg, noise), np.float64)
 
     def losses_at(units):  # in batches of 2d, the Jacobian's: the same compiled program
@@ -226,4 +249,4 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
         a = float(np.asarray(space.from_unit(jnp.asarray(lo_u, jnp.float32)))[i])
         b = float(np.asarray(space.from_unit(jnp.asarray(hi_u, jnp.float32)))[i])
         out[n] = (min(a, b), max(a, b))
-    return out, [n for n, f in zip(space.names, und) if f]
+    return out, [n for n, f in zip(space.names, und) if f], correlated

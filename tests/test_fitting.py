@@ -212,6 +212,9 @@ def test_fit_recovers_a_synthetic_target(small_fit):
     truth, _, result = small_fit
     assert result.params["scale"] == pytest.approx(truth["scale"], rel=0.15)
     assert result.loss <= 2.0 * result.noise_floor
+    # a synthetic target of the fitted family: a convincing coat at the target's wavelength
+    assert result.rejected is None and result.convincing, result.verdict
+    assert np.asarray(result.fields["samples"]).shape[1:] == (32, 32)
     assert set(result.timings) >= {"design", "noise", "local", "report", "total"}
     assert result.history and result.history[0]["stage"] == "design"
     data = result.to_json()
@@ -275,7 +278,7 @@ def test_fit_a_growing_experiment():
     assert isinstance(res.model, mj.Experiment) and res.to_json()["params"] == res.params
 
 
-def test_cli_fit(tmp_path, small_fit):
+def test_cli_fit(tmp_path, small_fit, capsys):
     from morphojax.cli import main
 
     # the same simulator settings as `small_fit`, so the compiled programs are reused
@@ -292,6 +295,11 @@ def test_cli_fit(tmp_path, small_fit):
     data = json.loads((tmp_path / "out.json").read_text())
     assert set(data["params"]) == {"ratio", "scale"} and data["target"]["cell_pixels"] == 4.0
     assert data["family"] == "turing" and set(data["intervals"]) == {"ratio", "scale"}
+    assert isinstance(data["convincing"], bool) and data["verdict"] and "correlated" in data
+    printed = json.loads(capsys.readouterr().out.splitlines()[0])  # the command's own line
+    assert printed["verdict"] == data["verdict"] and set(printed["heldout"]) == {"distance", "floor", "noise",
+                                                                                 "held_out"}
+    assert printed["seconds"] >= printed["stages"]["fit"] > 0  # the whole command's wall time
     assert (tmp_path / "out.png").exists()
     sample = Image.open(tmp_path / "sample.png")
     assert sample.mode == "L" and sample.size == (32, 32)  # the simulated lattice (--shape)
@@ -435,7 +443,11 @@ def test_auto_ranks_every_screened_family():
     for r in ranking:  # penalised = score + k log(number of statistics groups)
         assert r["penalised"] == pytest.approx(r["loss"] + r["k"] * np.log(len(StatsConfig().groups())), rel=1e-6)
     data = json.loads(json.dumps(res.to_json(), allow_nan=False))
-    assert data["family"] == res.family and {"family", "loss", "params"} <= set(data["ranking"][0])
+    assert data["family"] == res.family and {"family", "loss", "params", "rejected"} <= set(data["ranking"][0])
+    # full fits are ranked by the held-out distance, rejected ones after the others
+    assert data["ranking"][0]["heldout"] == pytest.approx(res.heldout["distance"])
+    assert isinstance(data["convincing"], bool) and data["verdict"] == res.verdict
+    assert res.timings["total"] >= res.timings["auto_screen"] + res.timings["auto_fits"]
     assert set(data["intervals"]) == set(res.params) and isinstance(data["undetermined"], list)
 
 

@@ -1,0 +1,149 @@
+"""`fitting.fit`: a photo's path through the fit, top to bottom.
+
+1. The target (`fitting._target`): the photo at lattice resolution, its scale read from the
+   pigment pattern; `fitting._verdict.split_target` keeps half of a large enough target
+   apart for the verdict.
+2. The family: one family's fit (`fitting._fit.fit_one`: design, local search, intervals),
+   or `auto` (`fitting._auto`: every family screened, the best fitted in full, ranked by the
+   held-out distance).
+3. The verdict and the report (`fitting._verdict`): each full fit's samples against the
+   held-out tile, degenerate coats rejected, convincing or not in words; the whole call's
+   wall time and its stages in `timings`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+from ._auto import fit_auto
+from ._fit import METHODS, fit_one
+from ._result import FitResult
+from ._simulator import Simulator
+from ._stats import StatsConfig
+from ._target import Target, load_target
+from ._verdict import degenerate, judge, split_target, verdict_text
+
+# One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
+DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
+            "design_seeds": 2, "seed": 0, "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs",
+            "max_steps": 40, "binarise": True, "orientation": True, "progress": None}
+
+
+def progress_default() -> bool:
+    """`progress=None` means on when attached to a terminal or running in a notebook."""
+    import sys
+
+    try:
+        from IPython import get_ipython
+
+        shell = get_ipython()
+        if shell is not None and type(shell).__name__ == "ZMQInteractiveShell":
+            return True
+    except ImportError:
+        pass
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def _names(fit) -> list | None:
+    if fit is None:
+        return None
+    return list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
+
+
+def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bounds=None, shape=DEFAULTS["shape"],
+        steps: int | None = DEFAULTS["steps"], window: int | None = DEFAULTS["window"], seeds: int = DEFAULTS["seeds"],
+        design_seeds: int = DEFAULTS["design_seeds"],
+        seed: int = DEFAULTS["seed"], design: str = "lhs", n_design: int | None = DEFAULTS["n_design"],
+        rounds: int = DEFAULTS["rounds"], keep: int = DEFAULTS["keep"], method: str = DEFAULTS["method"],
+        max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
+        boundary: str = "wrap", species=None, batch_size: int = 8, noise_seeds: int = 8,
+        learning_rate: float = 0.05, length_scale: str | None = "family", progress: bool | None = DEFAULTS["progress"],
+        intervals: bool = True, families=None, top: int = 2, simulator: Simulator | None = None) -> FitResult:
+    """Fit parameters of `model` so its texture statistics match `target`'s.
+
+    Args:
+        target: a `Target` (see `load_target`), an image path, or a 2D array at lattice
+            resolution (normalised by its quantiles like a photo).
+        model: "auto" (screen every family, fit the best `top` in full, rank them; see
+            `fitting._auto`), a family name ("turing", "anisotropic-turing", "bard",
+            "gray-scott", "reinforcement", "young", "leopard"; `fitting.FAMILIES`), another
+            model name, a model, a one-species `YoungCA`, or an `Experiment` (growing and
+            multi-phase runs; see `Simulator` for names).
+        fit: names of the parameters to fit; None fits the family's defaults (with "auto",
+            names given apply to each family that has them).
+        fixed: parameters held at given values; bounds: {name: (low, high)} overriding the
+            family's (or `fitting.DEFAULT_BOUNDS`).
+        shape: simulated lattice (rows, cols); steps / window: steps per simulation and how
+            many of the last are differentiated (None: the family's).
+        seeds: simulations averaged per evaluation (vmapped); design_seeds: the global
+            stage's (at most `seeds`: it only has to find the basin, and it is most of the
+            simulations); seed: the fit's random seed.
+        design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
+            n_design points (default 12 per fitted parameter), a scan of each fitted limit
+            (`LIMIT_SCAN` points across its bounds), then `rounds` Latin hypercubes in boxes
+            (halving each round; two scan steps wide along a limit whose scan found a narrow
+            band) around the best `keep`, which start local searches.
+        method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
+            iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
+        stats: which statistics and how they are weighted (default `StatsConfig()`: pigment
+            maps, with orientation).
+        length_scale: the fitted parameter that moves the wavelength ("family": the family's
+            own, e.g. Turing's `scale`); the global stage moves each design point along it
+            to the target's dominant wavelength (None to disable).
+        progress: True for a progress bar, False for silence, None (default) for a bar in
+            terminals and notebooks and one log line per stage on stderr elsewhere.
+        intervals: compute the Laplace credible intervals (`fitting.laplace_intervals`).
+        families, top: for "auto", the families screened (default all) and how many are
+            fitted in full.
+
+    Returns:
+        `FitResult` (see its docstring): `result.convincing` and `result.verdict` say whether
+        the coat reproduces the target on a held-out tile (`fitting._verdict`);
+        `result.save_json(path)`, `result.preview(path)`.
+    """
+    t_wall = time.perf_counter()
+    stats = StatsConfig() if stats is None else stats
+    mode = None if progress is False else "bar" if progress or progress_default() else "log"
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
+    if not isinstance(target, Target):  # a path, or an array already at lattice resolution
+        target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
+    options = dict(fixed=fixed, bounds=bounds, shape=shape, steps=steps, window=window, seeds=seeds, seed=seed,
+                   design_seeds=design_seeds, design=design, n_design=n_design, rounds=rounds, keep=keep,
+                   method=method, max_steps=max_steps, fallback=fallback, stats=stats, boundary=boundary,
+                   species=species, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
+                   length_scale=length_scale, intervals=intervals)
+    train, heldout, apart = split_target(target.field)
+    training = dataclasses.replace(target, field=train) if apart else target
+    assess = _assessor(target.field, heldout, apart, seed)
+    auto = isinstance(model, str) and model == "auto"
+    if auto:
+        result = fit_auto(training, _names(fit), families=families, top=top, progress=mode, assess=assess,
+                          **options)
+    else:
+        result = assess(fit_one(training, model, _names(fit), progress=mode, simulator=simulator, **options))
+    result.verdict = verdict_text(result.family, result.heldout, result.rejected, auto)
+    result.fields["heldout"] = heldout
+    result.config["split"] = {"train": list(train.shape), "heldout": list(heldout.shape), "apart": apart}
+    result.timings["fit"] = result.timings.get("total", float("nan"))
+    result.timings["total"] = time.perf_counter() - t_wall  # the whole call, `auto`'s screen and fits included
+    return result
+
+
+def _assessor(whole, heldout, apart: bool, seed: int):
+    """A function that sets a full fit's held-out report, rejection and convincing flag."""
+
+    def assess(result: FitResult) -> FitResult:
+        t0 = time.perf_counter()
+        samples = result.fields.get("samples", [result.fields["fit"]])
+        result.heldout = judge(samples, whole, heldout, apart, seed=seed)
+        result.rejected = degenerate(samples, result.heldout["target_wavelength"])
+        result.convincing = bool(result.heldout["convincing"] and result.rejected is None)
+        result.timings["verdict"] = time.perf_counter() - t0
+        return result
+
+    return assess
+
+
