@@ -12,7 +12,8 @@ between the target's and the fit's statistics with the config's fixed per-group 
 family look better). The distance sums about one unit of squared noise per statistics group,
 so it plays the part of -2 log L; the penalty is BIC's k log(n) with k the number of fitted
 parameters and n the number of statistics groups: penalised = score + k log(n). A family
-whose every design point is grid-scale screens last, rejected.
+whose every design point is off the target's scale (grid-scale, or more than 20% off its
+wavelength: it cannot reach it inside its bounds) screens last, rejected, and says so.
 
 The full fits are ranked by how well they predict what they were not fitted to: the
 held-out distance of `fitting._verdict` (the fit's samples against the tile of the target
@@ -47,7 +48,7 @@ import numpy as np
 
 from ._families import FAMILIES, stripe_angle
 from ._fit import fit_one
-from ._verdict import GRID_SCALE
+from ._verdict import off_scale
 
 ORIENTED_COHERENCE = 0.3
 STRIPED_COHERENCE = 0.5  # a target this coherent is striped: its fits must show the stripes
@@ -113,12 +114,13 @@ def fit_auto(target, names, *, families=None, top=2, progress, assess, **options
                 "keep": 1, "max_steps": 0, "intervals": False, "n_design": 6 * len(mine),
                 "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
         res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)
-        lam = res.config["wavelength"]
+        lam, lam_t = res.config["wavelength"], res.config["target_wavelength"]
         screened.append({"family": f, "score": res.score, "penalised": penalised(res.score, len(mine), cfg),
                          "params": res.params, "k": len(mine), "stage": "screen", "seconds": res.timings["total"],
-                         "rejected": f"wavelength {lam:.1f} cells: grid-scale at every design point"
-                         if lam < GRID_SCALE else None})
-    # a family whose every design point is grid-scale screens last
+                         "rejected": f"wavelength {lam:.1f} cells at its best design point against the "
+                                     f"target's {lam_t:.1f}: off the target's scale inside its bounds"
+                         if off_scale(lam, lam_t) else None})
+    # a family whose every design point is off the target's scale screens last
     screened.sort(key=lambda r: (r["rejected"] is not None,
                                  r["penalised"] if np.isfinite(r["penalised"]) else math.inf))
     stripes = stripe_angle(target.field)

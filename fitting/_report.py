@@ -103,9 +103,33 @@ def loss_curve(history, size=(256, 256)) -> Image.Image:
     return img
 
 
+def _preview_lines(result, tf) -> list:
+    """(text, colour) lines under the preview: the verdict (green when convincing, red when
+    not), the parameters, resolution, loss and time, and the ranking with its reasons."""
+    import textwrap
+
+    lines = [(line, (0, 110, 0) if result.convincing else (170, 0, 0))
+             for line in textwrap.wrap(result.verdict or "no verdict", 170)]
+    lines.append((", ".join(f"{k} = {v:.3g}" + (f" [{result.intervals[k][0]:.3g}, {result.intervals[k][1]:.3g}]"
+                                                  if k in result.intervals else "")
+                            for k, v in result.params.items()), "black"))
+    und = ", ".join(result.undetermined) if result.undetermined else "none"
+    cp = result.target.get("cell_pixels")
+    lines.append((f"not determined: {und}; {cp:.2f} photo pixels per cell, lattice {tf.shape[1]}x{tf.shape[0]}"
+                  if cp else f"not determined: {und}", "black"))
+    lines.append((f"loss {result.loss:.3g} (noise floor {result.noise_floor:.3g}), "
+                  f"{result.timings.get('total', 0):.0f} s", "black"))
+    for r in result.ranking[:6]:
+        score = f"held-out {r['heldout']:.3f}" if "heldout" in r else f"screened, penalised loss {r['penalised']:.3g}"
+        lines.append((f"  {r['family']}: {score}" + (f"; rejected: {r['rejected']}" if r.get("rejected") else ""),
+                      "black"))
+    return lines
+
+
 def preview(result, scale: int | None = None) -> Image.Image:
     """target | fitted simulation | loss curve | the fit in the animal's colours, with the
-    fitted parameters, family, resolution and intervals underneath."""
+    verdict, the fitted parameters, family, resolution, intervals and the ranking with its
+    reasons underneath."""
     from ._palette import GREY, colourise
 
     tf, ff = result.fields["target"], result.fields["fit"]
@@ -114,7 +138,8 @@ def preview(result, scale: int | None = None) -> Image.Image:
     fsize = (side, int(side * ff.shape[0] / ff.shape[1]))
     coat = Image.fromarray(colourise(unit(ff), result.palette or GREY), "RGB").resize(fsize, Image.BICUBIC)
     panels = [_gray(tf, tsize), _gray(ff, fsize), loss_curve(result.history, (side, side)), coat]
-    height = max(p.height for p in panels) + 72
+    lines = _preview_lines(result, tf)
+    height = max(p.height for p in panels) + 24 + 13 * len(lines)
     canvas = Image.new("RGB", (4 * side + 20, height), "white")
     draw = ImageDraw.Draw(canvas)
     font = ImageFont.load_default()
@@ -122,17 +147,7 @@ def preview(result, scale: int | None = None) -> Image.Image:
                                                 "fit in the photo's colours"])):
         canvas.paste(p, (4 + k * (side + 4), 16))
         draw.text((4 + k * (side + 4), 2), title, fill="black", font=font)
-    text = ", ".join(f"{k} = {v:.3g}" + (f" [{result.intervals[k][0]:.3g}, {result.intervals[k][1]:.3g}]"
-                                         if k in result.intervals else "") for k, v in result.params.items())
-    draw.text((4, height - 54), text, fill="black", font=font)
-    und = ", ".join(result.undetermined) if result.undetermined else "none"
-    cp = result.target.get("cell_pixels")
-    draw.text((4, height - 41), f"not determined: {und}; {cp:.2f} photo pixels per cell, lattice "
-                                f"{tf.shape[1]}x{tf.shape[0]}" if cp else f"not determined: {und}", fill="black",
-              font=font)
-    draw.text((4, height - 28), f"loss {result.loss:.3g} (noise floor {result.noise_floor:.3g}), "
-                                f"{result.timings.get('total', 0):.0f} s", fill="black", font=font)
-    if result.ranking:
-        rank = "; ".join(f"{r['family']} {r['penalised']:.3g}" for r in result.ranking[:5])
-        draw.text((4, height - 15), f"ranking (penalised loss): {rank}", fill="black", font=font)
+    top = height - 13 * len(lines) - 2
+    for i, (line, colour) in enumerate(lines):
+        draw.text((4, top + 13 * i), line, fill=colour, font=font)
     return canvas

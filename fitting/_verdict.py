@@ -174,6 +174,14 @@ def halves(field) -> tuple[np.ndarray, np.ndarray]:
     return (x[:, :half], x[:, half: 2 * half]) if axis else (x[:half], x[half: 2 * half])
 
 
+def off_scale(wavelength, target_wavelength: float):
+    """Whether a pattern of `wavelength` cells (an array of them too) is grid-scale or off the
+    target's wavelength by more than WAVELENGTH_TOLERANCE (not-a-number: off)."""
+    wavelength = np.asarray(wavelength, np.float64)
+    near = np.abs(wavelength / target_wavelength - 1.0) <= WAVELENGTH_TOLERANCE
+    return ~(wavelength >= GRID_SCALE) | (~near if np.isfinite(target_wavelength) else False)
+
+
 def degenerate(samples, target_wavelength: float) -> str | None:
     """Why a fit's simulated samples are no coat (module docstring), or None."""
     samples = [np.asarray(s, np.float64) for s in samples]

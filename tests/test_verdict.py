@@ -77,6 +77,12 @@ def test_degenerate_coats_are_named():
     assert verdict.degenerate([np.full((16, 16), np.nan)], 9.0).startswith("unstable")
 
 
+def test_off_scale_is_grid_scale_or_twenty_percent_off():
+    lams = np.array([2.5, 3.9, 7.0, 7.3, 10.7, 11.1, np.nan])
+    np.testing.assert_array_equal(verdict.off_scale(lams, 9.0), [True, True, True, False, False, True, True])
+    assert not verdict.off_scale(12.0, np.nan) and verdict.off_scale(3.0, np.nan)  # no target: grid scale only
+
+
 def test_verdict_text():
     report = {"distance": 0.5, "floor": 0.1, "noise": 0.55, "held_out": True, "convincing": False}
     text = verdict.verdict_text("leopard", report, "wavelength 2.1 cells: grid-scale", auto=True)
