@@ -3,6 +3,7 @@
     import fitting
     target = fitting.load_target("targets/cheetah-01.jpg", crop=(300, 200, 700, 500), invert=True)
     result = fitting.fit(target)  # model="auto": every family screened, the best fitted
+    result.convincing, result.verdict  # judged on a held-out half of the target (`fitting._verdict`)
     result.family, result.params, result.intervals, result.undetermined, result.ranking
     result.render("coat.png", size=1024)  # the fitted coat in the photo's colours
     result.save_json("fit.json"); result.preview("fit.png")

@@ -224,7 +224,9 @@ def judge(samples, whole, heldout, held_out: bool, seed: int = 0) -> dict:
 def verdict_text(family: str, heldout: dict, rejected: str | None, auto: bool) -> str:
     """The verdict in words: convincing or not, by how much, and the nearest family."""
     d, floor, noise = heldout["distance"], heldout["floor"], heldout["noise"]
-    where = "on held-out tiles" if heldout["held_out"] else "on the target's halves (too small to hold a tile out)"
+    where = ("on held-out tiles" if heldout["held_out"] else
+             f"on the target's halves (too small to hold a tile out: each half needs {HELDOUT_WAVELENGTHS:g} "
+             "wavelengths along both axes)")
     numbers = (f"distance {d:.3f} {where}: {d / max(floor, 1e-12):.1f}x the within-target floor {floor:.3f} "
                f"(convincing at most {FLOOR_FACTOR:g}x) and {d / max(noise, 1e-12):.2f}x white noise's {noise:.3f} "
                f"(at most {NOISE_FACTOR:g}x)")
