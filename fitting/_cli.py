@@ -90,6 +90,7 @@ def run(args) -> int:
     import time
 
     import fitting
+    import morphojax as mj
 
     t_wall = time.perf_counter()
 
@@ -116,12 +117,12 @@ def run(args) -> int:
             path.parent.mkdir(parents=True, exist_ok=True)
             write(path)
     stages = {k: round(v, 1) for k, v in result.timings.items() if k != "total"}
-    print(json.dumps({"family": result.family, "convincing": result.convincing, "verdict": result.verdict,
-                      "heldout": {k: result.heldout.get(k) for k in ("distance", "floor", "noise", "held_out")},
-                      "params": result.params, "intervals": result.intervals, "undetermined": result.undetermined,
-                      "correlated": result.correlated, "loss": result.loss, "noise_floor": result.noise_floor,
-                      "cell_pixels": target.cell_pixels, "seconds": round(time.perf_counter() - t_wall, 1),
-                      "stages": stages, "json": str(args.json),
-                      "preview": str(args.preview) if args.preview else None}))
+    line = {"family": result.family, "convincing": result.convincing, "verdict": result.verdict,
+            "heldout": {k: result.heldout.get(k) for k in ("distance", "floor", "noise", "held_out")},
+            "params": result.params, "intervals": result.intervals, "undetermined": result.undetermined,
+            "correlated": result.correlated, "loss": result.loss, "noise_floor": result.noise_floor,
+            "cell_pixels": target.cell_pixels, "seconds": round(time.perf_counter() - t_wall, 1), "stages": stages,
+            "json": str(args.json), "preview": str(args.preview) if args.preview else None}
+    print(json.dumps(mj.to_jsonable(line), allow_nan=False))  # strict JSON: a NaN is written as "nan"
     print(result.describe())
     return 0
