@@ -154,7 +154,9 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
             n_design, rounds, keep, method, max_steps, fallback, stats, boundary, species, batch_size, noise_seeds,
             learning_rate, length_scale, intervals, progress, simulator=None, stage_prefix="",
             screen_only=False) -> FitResult:
-    """One family's (or model's) fit; `fit` without "auto". `target` is a `Target`."""
+    """One family's (or model's) fit; `fit` without "auto". `target` is a `Target` (the part
+    of the photo the fit may see); `progress` a mode of `fitting._progress.make_progress`
+    ("bar", "log" or None)."""
     fam, template, names, fam_bounds = _resolve(model, names, shape)
     n_design = 12 * max(len(names), 1) if n_design is None else n_design
     for name, value, low in (("seeds", seeds, 1), ("design_seeds", design_seeds, 1), ("n_design", n_design, 1),
