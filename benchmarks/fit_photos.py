@@ -49,7 +49,7 @@ PHOTOS = {
 
 def second_crop(result, target, file, crop_b, invert) -> dict:
     """Crop B's distances (module docstring): the fit's, the floor, white noise's."""
-    from fitting._verdict import target_wavelength
+    from fitting._verdict import noise_distance, target_wavelength, within_yardsticks
 
     try:
         other = fitting.load_target(TARGETS / file, crop=crop_b, invert=invert, cell_pixels=target.cell_pixels)
@@ -60,10 +60,9 @@ def second_crop(result, target, file, crop_b, invert) -> dict:
     samples = result.fields.get("samples", [result.fields["fit"]])
     fit = float(np.mean([fitting.texture_distance(s, other.field, lam) for s in samples]))
     floor = fitting.texture_distance(target.field, other.field, lam)
-    shuffled = np.random.default_rng(0).permutation(other.field.ravel()).reshape(other.field.shape)
-    noise = fitting.texture_distance(shuffled, other.field, lam)
-    return {"distance": fit, "floor": floor, "noise": noise,
-            "convincing": bool(fit <= 2 * floor and fit <= 0.6 * noise), "lattice": list(other.field.shape)}
+    noise = noise_distance(other.field, lam)
+    return {"distance": fit, "floor": floor, "noise": noise, "convincing": within_yardsticks(fit, floor, noise),
+            "lattice": list(other.field.shape)}
 
 
 def main():

@@ -165,16 +165,21 @@ FAMILIES = {
 }
 
 
+def structure_tensor(field) -> tuple[float, float, float]:
+    """(Jxx, Jyy, Jxy): the field's mean structure tensor from central differences inside the
+    field (a photo does not wrap around); x along a row, y along a column."""
+    z = np.asarray(field, np.float64)
+    gx = 0.5 * (z[1:-1, 2:] - z[1:-1, :-2])  # along a row (+x, increasing column)
+    gy = 0.5 * (z[2:, 1:-1] - z[:-2, 1:-1])  # along a column (increasing row)
+    return float(np.mean(gx * gx)), float(np.mean(gy * gy)), float(np.mean(gx * gy))
+
+
 def stripe_angle(field) -> tuple[float, float]:
     """(direction, coherence) of a field's stripes from its structure tensor: the direction
     in radians in [-pi/2, pi/2) (0 along a row, positive toward increasing row index,
     the polarity's convention) runs across the mean gradient; coherence in [0, 1] is 0 for
     an isotropic texture and 1 for straight parallel stripes."""
-    z = np.asarray(field, np.float64)
-    # central differences inside the field (a photo does not wrap around)
-    gx = 0.5 * (z[1:-1, 2:] - z[1:-1, :-2])  # along a row (+x, increasing column)
-    gy = 0.5 * (z[2:, 1:-1] - z[:-2, 1:-1])  # along a column (increasing row)
-    jxx, jyy, jxy = np.mean(gx * gx), np.mean(gy * gy), np.mean(gx * gy)
+    jxx, jyy, jxy = structure_tensor(field)
     norm = jxx + jyy
     if norm <= 0:
         return 0.0, 0.0

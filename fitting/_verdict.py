@@ -42,6 +42,8 @@ import math
 
 import numpy as np
 
+from ._families import structure_tensor
+
 GRID_SCALE = 4.0  # cells: a pattern finer than this is the lattice's, not a coat's
 WAVELENGTH_TOLERANCE = 0.2  # a fit's wavelength within 20% of the target's
 HELDOUT_WAVELENGTHS = 4.0  # each half of a split target holds this many wavelengths per axis
@@ -103,9 +105,8 @@ def _bands(x: np.ndarray) -> np.ndarray:
 
 
 def _coherence_vector(x: np.ndarray) -> np.ndarray:
-    gx = 0.5 * (x[1:-1, 2:] - x[1:-1, :-2])
-    gy = 0.5 * (x[2:, 1:-1] - x[:-2, 1:-1])
-    jxx, jyy, jxy = np.mean(gx * gx), np.mean(gy * gy), np.mean(gx * gy)
+    """Coherence times (cos 2 theta, sin 2 theta) of the mean gradient (`stripe_angle`'s tensor)."""
+    jxx, jyy, jxy = structure_tensor(x)
     norm = jxx + jyy
     return np.zeros(2) if norm <= 0 else np.array([jxx - jyy, 2.0 * jxy]) / norm
 
@@ -200,6 +201,19 @@ def degenerate(samples, target_wavelength: float) -> str | None:
     return None
 
 
+def noise_distance(tile, wavelength: float, seed: int = 0) -> float:
+    """The noise yardstick: the distance from white noise with `tile`'s values (its pixels
+    shuffled) to `tile`."""
+    tile = np.asarray(tile, np.float64)
+    shuffled = np.random.default_rng(seed).permutation(tile.ravel()).reshape(tile.shape)
+    return texture_distance(shuffled, tile, wavelength)
+
+
+def within_yardsticks(distance: float, floor: float, noise: float) -> bool:
+    """Whether a distance is convincing: at most FLOOR_FACTOR x the floor and NOISE_FACTOR x the noise."""
+    return bool(distance <= FLOOR_FACTOR * floor and distance <= NOISE_FACTOR * noise)
+
+
 def judge(samples, whole, heldout, held_out: bool, seed: int = 0) -> dict:
     """The held-out report of a fit: its distance (mean over `samples`), the floor, the noise,
     the groups, the target's and the fit's wavelengths, and whether the fit is convincing
@@ -212,10 +226,8 @@ def judge(samples, whole, heldout, held_out: bool, seed: int = 0) -> dict:
     distance = float(np.mean([_rms(p) for p in per_sample]))
     first, second = halves(whole)
     floor = texture_distance(first, second, lam)
-    rng = np.random.default_rng(seed)
-    noise_field = rng.permutation(np.asarray(heldout, np.float64).ravel()).reshape(np.shape(heldout))
-    noise = texture_distance(noise_field, heldout, lam)
-    convincing = bool(distance <= FLOOR_FACTOR * floor and distance <= NOISE_FACTOR * noise)
+    noise = noise_distance(heldout, lam, seed)
+    convincing = within_yardsticks(distance, floor, noise)
     return {"distance": distance, "floor": floor, "noise": noise, "held_out": bool(held_out), "groups": groups,
             "target_wavelength": lam, "fit_wavelength": float(np.nanmedian([wavelength_of(s) for s in samples])),
             "convincing": convincing}
