@@ -34,6 +34,7 @@ from ._initial import constant_state, gray_scott_state, initial_state, paper_sta
 from ._bounds import Barrier
 from ._status import Run, RunStatus, SimulationError
 from ._plan import BlockLadder, WholeCapacity
+from .solvers import ETDRK, IMEX, AbstractSolver, Euler, SteadyState
 from ._simulate import rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
@@ -176,6 +177,11 @@ __all__ = [
     "ThesisReinforcement",
     "simulate",
     "SimulationError",
+    "AbstractSolver",
+    "Euler",
+    "ETDRK",
+    "IMEX",
+    "SteadyState",
     "slice_montage",
     "Source",
     "species_mesh",

@@ -14,6 +14,7 @@ import functools
 import math
 
 import equinox as eqx
+import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 from jax import Array
@@ -88,17 +89,22 @@ def _crop_state(domain, c: Carry, names, t0, step0, dt, growable, dynamic: bool)
 @eqx.filter_jit
 def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growth, sources, *, names, growable,
                steps: int, cfg: Config, chunk: int, checkpoint: bool, save_every: int | None, save_fn,
-               blocks=None, schedule=None, segments=None, clock=None):
-    """The compiled core. Returns (final State, bad step, overflow flag, saved frames or None).
+               blocks=None, schedule=None, segments=None, clock=None, solver=None, until=None):
+    """The compiled core. Returns (final State, bad step, overflow flag, saved frames or
+    None, the time a stopping rule ended the run or NaN).
 
     With `blocks`, chunk j computes on the top-left block `blocks[schedule[j]]` (see
     `BlockLadder.chunk_blocks`); the chunk index comes from the scan, so it stays a real
     branch under vmap too. With `segments` (see `BlockLadder.segments`) the run follows
     that layout instead. `clock` = (time, step) of the run's start when this is one of its
-    pieces: times are then time + (step - that step) dt, as in one piece.
+    pieces: times are then time + (step - that step) dt, as in one piece. `solver`
+    advances each step (default Euler); with a stopping rule `until`, steps after the stop
+    leave the carry as it is and the chunks after it are skipped.
     """
     time0, step_t = (time0, step0) if clock is None else clock
-    c = Carry(domain.carry(fields, size, cfg.dynamic), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False))
+    steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
+    c = Carry(domain.carry(fields, size, cfg.dynamic), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False),
+              steady)
     if segments is not None:
         return _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg, checkpoint, segments,
                                    names, growable, time0, step_t)
@@ -106,13 +112,18 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     per = max(1, min(per, steps)) if steps else 1
     n_full, rem = divmod(steps, per)
 
+    def stopping(step):
+        return step if until is None else _until_steady(step, domain, until.tol, dt, time0, step_t)
+
     if blocks is None:
-        step = make_step(model, domain, dt, cfg, growth, sources, key, origin)
+        step = stopping(make_step(model, domain, dt, cfg, growth, sources, key, origin, solver=solver,
+                                  shape=fields.shape[1:]))
 
         def run_chunk(c, j, n):
             return _chunk(step, c, n, checkpoint)
     else:
-        steps_b = [make_step(model, domain, dt, cfg, growth, sources, key, origin, block=b) for b in blocks]
+        steps_b = [stopping(make_step(model, domain, dt, cfg, growth, sources, key, origin, block=b))
+                   for b in blocks]
 
         def run_chunk(c, j, n):
             def branch(i):
@@ -127,19 +138,49 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
             return jax.lax.switch(j, [branch(i) for i in range(len(blocks))], c)
 
     frames = None
-    if n_full:
+    index = jnp.asarray(schedule[:n_full] if schedule is not None else [0] * n_full, jnp.int32)
+    if n_full and until is not None and save_every is None:
+        # chunks until every member has stopped (or blown up); reverse-mode differentiable
+        def running(s):
+            j, c = s
+            return (j < n_full) & jnp.isnan(c.steady) & (c.bad < 0)
+
+        def next_chunk(s):
+            j, c = s
+            return j + 1, run_chunk(c, index[j], per)
+
+        c = eqxi.while_loop(running, next_chunk, (jnp.asarray(0, jnp.int32), c), max_steps=n_full,
+                            kind="checkpointed")[1]
+    elif n_full:
         def body(c, j):
             c = run_chunk(c, j, per)
             y = None if save_every is None else save_fn(
                 _crop_state(domain, c, names, time0, step_t, dt, growable, cfg.dynamic))
             return c, y
 
-        index = jnp.asarray(schedule[:n_full] if schedule is not None else [0] * n_full, jnp.int32)
         c, frames = jax.lax.scan(body, c, index)
     if rem:
         c = run_chunk(c, jnp.asarray(schedule[-1] if schedule is not None else 0, jnp.int32), rem)
     final = _crop_state(domain, c, names, time0, step_t, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, frames
+    return final, c.bad, c.overflow, frames, _steady_time(c, dt)
+
+
+def _steady_time(c: Carry, dt):
+    return jnp.asarray(jnp.nan, dt.dtype) if c.steady is None else c.steady
+
+
+def _until_steady(step, domain, tol: float, dt, time0, step0):
+    """`step` that records when max |x_{n+1} - x_n| / dt first falls below `tol`, and from
+    then on leaves the carry as it is (a frozen member of a vmapped batch)."""
+    def stepped(c: Carry) -> Carry:
+        new = step(c)
+        change = jnp.max(jnp.abs(domain.interior(new.p) - domain.interior(c.p))) / dt
+        settled = change < tol  # False for NaN: a blow-up is not a steady state
+        new = new._replace(steady=jnp.where(settled, time0 + (new.step - step0) * dt, new.steady))
+        done = ~jnp.isnan(c.steady)
+        return jax.tree_util.tree_map(lambda old, fresh: jnp.where(done, old, fresh), c, new)
+
+    return stepped
 
 
 def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg, checkpoint, segments, names,
@@ -165,7 +206,7 @@ def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg,
         sub = jax.lax.scan(body, c._replace(p=domain.block(c.p, *blocks[b])), None, length=repeat)[0]
         c = sub._replace(p=domain.unblock(c.p, sub.p))
     final = _crop_state(domain, c, names, time0, step0, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, None
+    return final, c.bad, c.overflow, None, _steady_time(c, dt)
 
 
 def default_chunk(steps: int, checkpoint) -> int:
@@ -178,7 +219,7 @@ def default_chunk(steps: int, checkpoint) -> int:
 
 
 def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, checkpoint, progress, save_every,
-          save_fn, description, plan):
+          save_fn, description, plan, solver=None, until=None):
     """Run `_integrate`, in pieces with a progress bar when asked (results are identical).
 
     Returns (final State, RunStatus, frames or None).
@@ -187,7 +228,7 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
     ckpt = bool(checkpoint)
     origin = state.step if origin is None else jnp.asarray(origin, jnp.int32)
     pieces, rungs = [steps], None
-    planned = cfg.dynamic and save_every is None and growth is not None
+    planned = cfg.dynamic and save_every is None and growth is not None and until is None
     if progress and steps and is_concrete(state.fields, model, dt):
         unit = save_every or chunk
         if planned and is_concrete(growth.rate) and growth.period_steps(dt) > 0:
@@ -224,22 +265,24 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
                 _integrate, model, domain, current.fields, current.size, current.step, current.time, dt, key, origin,
                 growth, sources, names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
                 checkpoint=ckpt, save_every=save_every, save_fn=save_fn,
-                clock=None if len(pieces) == 1 else (state.time, state.step))
-            final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, segments=segments)
+                clock=None if len(pieces) == 1 else (state.time, state.step), solver=solver, until=until)
+            final, bad_i, over_i, frames, steady_i = run(blocks=blocks, schedule=schedule, segments=segments)
             if segments is not None and is_concrete(bad_i) and int(bad_i) >= 0:
                 # a planned run only marks the segment that blew up: the same piece again
                 # (same key, same result) on the chunked path, which replays the bad chunk
                 # one step at a time, pins down the step
                 per = max(1, min(chunk, int(n)))
                 blocks, schedule = plan.chunk_blocks(current, growth, int(n), dt, origin, per)
-                final, bad_i, over_i, frames = run(blocks=blocks, schedule=schedule, segments=None)
-            status = status.merge(RunStatus(bad_i, over_i))
+                final, bad_i, over_i, frames, steady_i = run(blocks=blocks, schedule=schedule, segments=None)
+            status = status.merge(RunStatus(bad_i, over_i, steady_i))
             if frames is not None:
                 frames_all.append(frames)
             current = final
             if bar is not None:
                 bar.update(n)
                 if is_concrete(status.nonfinite_step) and int(status.nonfinite_step) >= 0:
+                    break
+                if is_concrete(status.steady_at) and not math.isnan(float(status.steady_at)):
                     break
     finally:
         if bar is not None:

@@ -27,15 +27,16 @@ from ._plan import BlockLadder, WholeCapacity
 from ._state import State
 from ._status import Run, SimulationError
 from ._step import Config
+from .solvers import SteadyState, as_solver
 
 
-def _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt):
+def _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt, solver):
     # concrete values are checked eagerly, also while an outer jax.jit traces this call
     with jax.ensure_compile_time_eval():
-        _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt)
+        _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt, solver)
 
 
-def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt):
+def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt, solver):
     if not isinstance(model, AbstractModel):
         raise ValueError(f"model must be a morphojax model such as Turing(...) (got {type(model).__name__})")
     if not isinstance(state, State):
@@ -65,7 +66,7 @@ def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt):
         if not np.isfinite(np.asarray(state.fields)).all():
             raise ValueError("state contains NaN or infinite values")
     if check_dt and is_concrete(model, dt):
-        domain.check_dt(dt, model.max_diffusion())
+        solver.check_dt(domain, dt, model)
     if isinstance(cfg.bounds, Barrier) and is_concrete(state.fields, model):
         x = np.stack(state.arrays())
         lo = np.asarray(per_species(model.lower))
@@ -90,14 +91,20 @@ def _map_leaves(model):
     return out
 
 
-def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth, sources, key, check_dt, origin, plan):
+def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth, sources, key, check_dt, origin, plan,
+             solver, until):
     domain = as_domain(domain, stencil=stencil, boundary=boundary)
     cfg = Config(bounds=bounds_policy(bounds), dynamic=bool(state.growable or growth is not None))
     if cfg.dynamic and not domain.supports_growth:
         raise ValueError(f"growth is not supported on the {domain.description}: pass growth=None and a state without "
                          "room to grow (State.from_arrays without capacity=)")
-    _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt)
+    solver = as_solver(solver)
+    if until is not None and not isinstance(until, SteadyState):
+        raise ValueError(f"until must be None or mj.SteadyState(tol=...) (got {until!r})")
     sources = tuple(sources or ())
+    if isinstance(model, AbstractModel):
+        solver.check(domain, model, dynamic=cfg.dynamic, sources=sources)
+    _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt, solver)
     if (growth is not None or sources) and key is None:
         raise ValueError("key is required when growth or sources are used (they draw random numbers)")
     if growth is not None:
@@ -113,37 +120,39 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
     dt = as_float_array(dt, "dt").astype(state.fields.dtype)
     if plan is not None and not isinstance(plan, (BlockLadder, WholeCapacity)):
         raise ValueError(f"plan must be mj.BlockLadder(...) or mj.WholeCapacity() (got {plan!r})")
-    return domain, cfg, dt, sources, BlockLadder() if plan is None else plan
+    return domain, cfg, dt, sources, BlockLadder() if plan is None else plan, solver
 
 
 _OPTIONS = dict(domain=None, stencil=None, bounds="clip", growth=None, sources=(), key=None, check_dt=True,
-                throw=True, progress=False, checkpoint=None, origin=None, plan=None)
+                throw=True, progress=False, checkpoint=None, origin=None, plan=None, solver=None, until=None)
 
 
 def _run(model, state, steps, dt, boundary, options, save_every=None, save_fn=None, description=None):
     """Check the inputs, drive the loop; (final State, RunStatus, frames)."""
     o = options
-    domain, cfg, dt, sources, plan = _prepare(model, state, steps, dt, o["domain"], boundary, o["stencil"],
-                                              o["bounds"], o["growth"], o["sources"], o["key"], o["check_dt"],
-                                              o["origin"], o["plan"])
+    domain, cfg, dt, sources, plan, solver = _prepare(
+        model, state, steps, dt, o["domain"], boundary, o["stencil"], o["bounds"], o["growth"], o["sources"],
+        o["key"], o["check_dt"], o["origin"], o["plan"], o["solver"], o["until"])
     if description is None:  # the progress bar's name: a phase's, or the model's
         description = o["progress"] if isinstance(o["progress"], str) else type(model).__name__
     return drive(model, domain, state, steps, dt, cfg, o["growth"], sources, o["key"], o["origin"], o["checkpoint"],
-                 bool(o["progress"]), save_every, save_fn, description, plan)
+                 bool(o["progress"]), save_every, save_fn, description, plan, solver, o["until"])
 
 
 def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str | None = None, *,
              domain=None, stencil: str | None = None, bounds="clip", growth=None, sources=(), key=None,
              check_dt: bool = True, throw: bool = True, progress: bool = False, checkpoint=None,
-             origin=None, plan=None) -> State:
-    """Run `steps` forward-Euler steps of `model` from `state`; return the new State.
+             origin=None, plan=None, solver=None, until=None) -> State:
+    """Run `steps` steps of `model` from `state` (forward Euler unless `solver` says
+    otherwise); return the new State.
 
     Args:
         model: a model such as `Turing(ratio=4, scale=3)`.
         state: the initial `State` (species must match the model's).
         steps: number of steps (a Python int; simulated time is steps x dt).
-        dt: time step (unit: simulated time). Checked against the domain's explicit-Euler
-            limit for the largest diffusion rate unless `check_dt=False`.
+        dt: time step (unit: simulated time). Checked against the solver's own criterion
+            unless `check_dt=False`: for Euler the domain's explicit limit for the largest
+            diffusion rate; `ETDRK` and `IMEX` have no diffusion limit.
         boundary: shorthand for `domain=Lattice(boundary=...)`: "wrap" (toroidal, the
             default) or "no-flux" (ghost cell = edge cell).
         domain: where the species diffuse (default `Lattice()`: nine-point stencil, wrap).
@@ -166,12 +175,20 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str |
             set it when resuming inside a growing phase.
         plan: how a growing lattice is computed: `BlockLadder()` (default: blocks that
             follow the active region) or `WholeCapacity()` (the reference); same results.
+        solver: how each step advances reaction + diffusion: `Euler()` (default, the
+            papers' method, every domain), `ETDRK(order=1|2|4)` or `IMEX(order=1|2)`
+            (diffusion exact or implicit on the square lattice's own eigenbasis, so dt is
+            bounded by the reaction only; no growth, sources, rate maps or anisotropy).
+            The limits are still a clamp after every step.
+        until: a stopping rule, `SteadyState(tol=...)`: stop when the largest change per
+            unit time falls below `tol`; `steps` is then the most steps taken.
 
     Returns:
         The new `State`, with `step` and `time` advanced.
     """
     options = dict(domain=domain, stencil=stencil, bounds=bounds, growth=growth, sources=sources, key=key,
-                   check_dt=check_dt, progress=progress, checkpoint=checkpoint, origin=origin, plan=plan)
+                   check_dt=check_dt, progress=progress, checkpoint=checkpoint, origin=origin, plan=plan,
+                   solver=solver, until=until)
     final, status, _ = _run(model, state, steps, dt, boundary, options)
     return status.check(final, throw)
 
@@ -210,9 +227,10 @@ def run_status(model, state, steps, dt, boundary=None, **kwargs) -> Run:
     """Like `simulate` with `throw=False`, also saying how the run ended.
 
     Returns a `Run`, which unpacks as (final state, first non-finite step or -1, overflow
-    flag); `run.status` is the `RunStatus`. For sweeps and fitting, where a failed member
+    flag); `run.steady_at` is when a stopping rule ended it (NaN if none did) and
+    `run.status` the whole `RunStatus`. For sweeps and fitting, where a failed member
     must be recorded rather than raised.
     """
     options = _options(kwargs, "run_status", tuple(k for k in _OPTIONS if k not in ("throw", "progress")))
     final, status, _ = _run(model, state, steps, dt, boundary, options, description="")
-    return Run(final, status.nonfinite_step, status.overflow)
+    return Run(final, status.nonfinite_step, status.overflow, status.steady_at)

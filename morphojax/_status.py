@@ -1,4 +1,4 @@
-"""How a run ended: ok, non-finite at step n, or growth past the capacity.
+"""How a run ended: ok, non-finite at step n, growth past the capacity, or settled at time t.
 
 In the manner of optimistix's `RESULTS` and `throw=`: the compiled loop records what went
 wrong as arrays (so failed members of a vmapped sweep are recorded, not raised), and one
@@ -6,8 +6,6 @@ place turns that record into an error or a message.
 """
 
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -26,12 +24,22 @@ class RunStatus(eqx.Module):
     Attributes:
         nonfinite_step: int32, the first step whose result held NaN or Inf; -1 if none.
         overflow: bool, growth was due while the state's capacity was full.
+        steady_at: the simulated time at which a stopping rule (`until=SteadyState(...)`)
+            ended the run; NaN if it did not (or none was given). An array, as the other
+            fields, so that it works under `jit` and `vmap`.
 
-    Works under `vmap` (the attributes then carry the batch axes).
+    Works under `vmap` (the attributes then carry the batch axes). The fields are JAX
+    arrays even in an eager call: `bool(status.ok)` and `status.message()` give the Python view.
     """
 
     nonfinite_step: Array
     overflow: Array
+    steady_at: Array
+
+    def __init__(self, nonfinite_step, overflow, steady_at=float("nan")):
+        self.nonfinite_step = jnp.asarray(nonfinite_step)
+        self.overflow = jnp.asarray(overflow)
+        self.steady_at = jnp.asarray(steady_at)
 
     @classmethod
     def healthy(cls) -> "RunStatus":
@@ -45,7 +53,8 @@ class RunStatus(eqx.Module):
     def merge(self, later: "RunStatus") -> "RunStatus":
         """This status followed by a later piece's: the first blow-up step, any overflow."""
         step = jnp.where(self.nonfinite_step >= 0, self.nonfinite_step, later.nonfinite_step)
-        return RunStatus(step, self.overflow | later.overflow)
+        steady = jnp.where(jnp.isnan(self.steady_at), later.steady_at, self.steady_at)
+        return RunStatus(step, self.overflow | later.overflow, steady)
 
     def message(self) -> str:
         """The status in words (concrete values)."""
@@ -75,13 +84,31 @@ class RunStatus(eqx.Module):
         return eqx.tree_at(lambda s: s.fields, state, fields)
 
 
-class Run(NamedTuple):
-    """What `run_status` returns: unpacks as (state, nonfinite_step, overflow)."""
+class Run(eqx.Module):
+    """What `run_status` returns: the final state and how the run ended.
+
+    Unpacks as (state, nonfinite_step, overflow), as a tuple did before stopping rules;
+    `steady_at` is the simulated time a stopping rule ended the run (NaN if it did not),
+    and `run.status` the whole `RunStatus`.
+    """
 
     state: object
     nonfinite_step: Array
     overflow: Array
+    steady_at: Array
+
+    def _fields(self):
+        return (self.state, self.nonfinite_step, self.overflow)
+
+    def __iter__(self):
+        return iter(self._fields())
+
+    def __getitem__(self, index):
+        return self._fields()[index]
+
+    def __len__(self):
+        return 3
 
     @property
     def status(self) -> RunStatus:
-        return RunStatus(self.nonfinite_step, self.overflow)
+        return RunStatus(self.nonfinite_step, self.overflow, self.steady_at)

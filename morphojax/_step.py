@@ -1,8 +1,9 @@
-"""One step: reaction + diffusion by the domain (forward Euler), sources, limits, growth.
+"""One step: reaction + diffusion by the domain and the solver, sources, limits, growth.
 
-As in the leopard paper (section 7): integrate reaction + diffusion with forward Euler, add
-any localised production (sources), clamp every species to [lower, upper], and expand the
-lattice when the growth schedule says so. The step is a function of the loop's carry; the
+As in the leopard paper (section 7): integrate reaction + diffusion (forward Euler by
+default; the solver is a policy, see `solvers`), add any localised production (sources),
+clamp every species to [lower, upper], and expand the lattice when the growth schedule
+says so. The step is a function of the loop's carry; the
 loop (`_loop`) scans it.
 
 Random numbers follow one key schedule (`step_key`, `growth_key`, `source_key`): step n
@@ -23,6 +24,7 @@ from jax import Array
 from ._bounds import Barrier
 from .domains import AbstractDomain
 from .models import AbstractModel, per_species
+from .solvers import Euler
 
 
 class Carry(NamedTuple):
@@ -33,6 +35,7 @@ class Carry(NamedTuple):
     step: Array  # global step counter
     bad: Array  # first step whose result was non-finite, -1 if none
     overflow: Array  # growth wanted to pass the capacity
+    steady: Array | None = None  # with a stopping rule: simulated time it stopped at, NaN before
 
 
 class Config(NamedTuple):
@@ -70,11 +73,25 @@ def slice_maps(model, block):
 
 
 def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, growth, sources, key, origin,
-              block=None):
-    """One step on the whole array, or on its top-left `block` (rows, cols) of the lattice."""
+              block=None, solver=None, shape=None):
+    """One step on the whole array, or on its top-left `block` (rows, cols) of the lattice.
+
+    `solver` (default `Euler()`) advances reaction + diffusion; a solver other than Euler
+    steps the whole lattice of spatial `shape` (it was checked to run without growth)."""
     if block is not None:
         model = slice_maps(model, block)
     barrier = cfg.bounds if isinstance(cfg.bounds, Barrier) else None
+    euler = solver is None or isinstance(solver, Euler)
+    advance = None if euler else solver.make_advance(model, domain, dt, cfg.bounds, shape)
+
+    def clamp(m, new, production):
+        """Sources and limits after a solver's step, species by species."""
+        lower, upper = per_species(m.lower, domain.ndim), per_species(m.upper, domain.ndim)
+        parts = []
+        for i in range(new.shape[0]):
+            value = new[i] + production[i] if i in production else new[i]
+            parts.append(jnp.clip(value, lower[i], upper[i]) if cfg.bounds == "clip" else value)
+        return jnp.stack(parts)
 
     def update(m, x, diffusion_terms, production, mask):
         """New values of the cells `x` (species, ...) given their diffusion terms: reaction,
@@ -107,14 +124,17 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
             production[src.index] = production[src.index] + amount if src.index in production else amount
         mask = domain.active_mask(x.shape[1:], c.size) if cfg.dynamic else None
         acting = model.at(x)  # the model itself unless its parameters follow the state
-        terms = domain.diffusion(c.p, per_species(acting.diffusion(), domain.ndim))
-        new = update(acting, x, terms, production, mask)
+        if euler:
+            terms = domain.diffusion(c.p, per_species(acting.diffusion(), domain.ndim))
+            new = update(acting, x, terms, production, mask)
+        else:
+            new = clamp(acting, advance(acting, x), production)
         p = domain.write(c.p, new, c.size, cfg.dynamic)
         size, overflow = c.size, c.overflow
         if growth is not None:
             p, size, overflow = grow_if_due(growth, domain, p, size, c.step + 1 - origin, dt,
                                             growth_key(key, c.step), overflow)
-        return Carry(p, size, c.step + 1, c.bad, overflow)
+        return Carry(p, size, c.step + 1, c.bad, overflow, c.steady)
 
     return step
 

@@ -169,6 +169,22 @@ class Lattice(AbstractDomain):
     def apply(self, fields):
         return _stencils.laplacian_padded(_stencils.pad(jnp.asarray(fields), self.boundary), self.stencil)
 
+    # ---- the operator's eigenbasis (exponential and implicit solvers, linear stability) --
+    def eigenvalues(self, shape):
+        """The stencil's eigenvalues on a (rows, cols) lattice of this boundary (float64,
+        cells^-2), laid out as the coefficients of `transform`: exact for the lattice, not
+        the continuum Laplacian's -|k|^2 (see `_stencils.eigenvalues`)."""
+        return _stencils.eigenvalues(self.stencil, self.boundary, shape)
+
+    def transform(self, fields):
+        """Coefficients of `fields` (..., rows, cols) in the stencil's eigenbasis: the real
+        FFT for "wrap", the orthonormal DCT-II for "no-flux"."""
+        return _stencils.forward_transform(fields, self.boundary)
+
+    def inverse_transform(self, coefficients, shape):
+        """The fields (..., rows, cols) whose `transform` is `coefficients`."""
+        return _stencils.inverse_transform(coefficients, self.boundary, shape)
+
     # ---- blocks of a growing lattice (the execution plans of `_plan`) --------------------
     def block(self, carried, rows: int, cols: int):
         """The carried layout of the top-left (rows, cols) block of the lattice."""

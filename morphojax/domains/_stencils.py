@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import jax.scipy.fft
+import numpy as np
 
 from .._checks import check_choice
 
@@ -137,3 +139,48 @@ def active_mask(shape, size):
     rows = jnp.arange(shape[0])[:, None] < size[0]
     cols = jnp.arange(shape[1])[None, :] < size[1]
     return rows & cols
+
+
+# ---- the stencils' eigenvalues: what the exponential and implicit solvers step on -----------
+def symbol(stencil: str, cos_r, cos_c):
+    """The stencil's eigenvalue (cells^-2) for the wave whose row and column phases have
+    cosines `cos_r`, `cos_c` (broadcast): the formulas of `SPECTRAL_RADIUS` above."""
+    if stencil == "five-point":
+        return 2.0 * cos_r + 2.0 * cos_c - 4.0
+    if stencil == "moore":
+        return 2.0 * cos_r + 2.0 * cos_c + 4.0 * cos_r * cos_c - 8.0
+    return (8.0 * (cos_r + cos_c) + 4.0 * cos_r * cos_c - 20.0) / 6.0
+
+
+def eigenvalues(stencil: str, boundary: str, shape) -> np.ndarray:
+    """The stencil's eigenvalues (float64, cells^-2) on a (rows, cols) lattice, laid out as
+    the coefficients of `forward_transform`.
+
+    "wrap": the waves exp(2 pi i (k r / rows + l c / cols)) diagonalise every 3x3 stencil
+    on the torus, with phases t = 2 pi k / N; the real FFT keeps columns l <= cols / 2.
+    "no-flux" (ghost cell = edge cell): the cosines cos(pi k (r + 1/2) / N), the DCT-II
+    basis, are even about both half-cell borders, so the ghost cells the stencil reads are
+    exactly the values the reflection gives; phases t = pi k / N. Both are exact, not
+    approximations of the continuum Laplacian: the stencil stays the model."""
+    rows, cols = (int(n) for n in shape)
+    if boundary == "wrap":
+        t_r = 2.0 * np.pi * np.fft.fftfreq(rows)
+        t_c = 2.0 * np.pi * np.fft.rfftfreq(cols)
+    else:
+        t_r = np.pi * np.arange(rows) / rows
+        t_c = np.pi * np.arange(cols) / cols
+    return symbol(stencil, np.cos(t_r)[:, None], np.cos(t_c)[None, :])
+
+
+def forward_transform(x, boundary: str):
+    """Coefficients of `x` (..., rows, cols) in the eigenbasis of `eigenvalues`."""
+    if boundary == "wrap":
+        return jnp.fft.rfft2(x, axes=(-2, -1))
+    return jax.scipy.fft.dctn(x, type=2, axes=(-2, -1), norm="ortho")
+
+
+def inverse_transform(coefficients, boundary: str, shape):
+    """The fields (..., rows, cols) of `forward_transform`'s coefficients (real)."""
+    if boundary == "wrap":
+        return jnp.fft.irfft2(coefficients, s=tuple(shape), axes=(-2, -1))
+    return jax.scipy.fft.idctn(coefficients, type=2, axes=(-2, -1), norm="ortho")

@@ -1,0 +1,7 @@
+"""Time-stepping policies (`Euler`, `ETDRK`, `IMEX`) and stopping rules (`SteadyState`)."""
+
+from ._base import AbstractSolver, Euler, as_solver
+from ._spectral import ETDRK, IMEX
+from ._steady import SteadyState
+
+__all__ = ["AbstractSolver", "Euler", "ETDRK", "IMEX", "SteadyState", "as_solver"]

@@ -1,0 +1,71 @@
+"""Solvers as policies: how a step advances the reaction and the diffusion over dt.
+
+As in diffrax, the solver is a small object passed in (`simulate(..., solver=...)`); the
+model stays its reaction and the domain its operator. `Euler` is the default and the
+reference: forward Euler on reaction + diffusion, the leopard paper's method (section 7),
+whose step is bounded by the diffusion limit dt * D_max * rho <= 2. The exponential and
+implicit solvers of `_spectral` lift that limit by treating diffusion exactly or
+implicitly on the stencil's own eigenbasis.
+
+Whatever the solver, the saturation limits are a clamp after every step, sources add
+their amount after it, and a growth expansion follows it: those stay the paper's
+per-iteration rules.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+
+
+class AbstractSolver(eqx.Module):
+    """Base of the time-stepping policies."""
+
+    @property
+    @abc.abstractmethod
+    def order(self) -> int:
+        """The order of accuracy in dt with the limits not binding."""
+
+    @property
+    def name(self) -> str:
+        return type(self).__name__
+
+    @abc.abstractmethod
+    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+        """Raise a ValueError, saying what to use instead, where this solver cannot run."""
+
+    @abc.abstractmethod
+    def check_dt(self, domain, dt, model) -> None:
+        """Raise a ValueError when `dt` is beyond this solver's own stability criterion."""
+
+    def to_dict(self) -> dict:
+        return {"solver": self.name, "order": self.order}
+
+
+class Euler(AbstractSolver):
+    """Forward Euler: x + dt (reaction + D lap x), the papers' method and the default.
+
+    Stable while dt * D_max * rho <= 2 (rho the operator's spectral radius, e.g. 16/3 for
+    the nine-point stencil); `simulate` checks this unless `check_dt=False`. Runs on every
+    domain, with growth, sources, diffusion maps and anisotropy. First order.
+    """
+
+    @property
+    def order(self) -> int:
+        return 1
+
+    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+        return None
+
+    def check_dt(self, domain, dt, model) -> None:
+        domain.check_dt(dt, model.max_diffusion())
+
+
+def as_solver(solver) -> AbstractSolver:
+    """`solver`, or `Euler()` for None; anything else is refused by name."""
+    if solver is None:
+        return Euler()
+    if not isinstance(solver, AbstractSolver):
+        raise ValueError(f"solver must be mj.Euler(), mj.ETDRK(order=1|2|4) or mj.IMEX(order=1|2) (got {solver!r})")
+    return solver

@@ -1,0 +1,191 @@
+"""Exponential (ETDRK) and implicit-explicit (IMEX) steps on the stencil's own eigenbasis.
+
+On a square lattice with uniform rates, diffusion is the linear operator L = D_i S for
+species i, S the stencil, and S is diagonal in a known basis: the real FFT for "wrap" and
+the DCT-II for "no-flux" (`Lattice.eigenvalues`, exact for the stencil). There each mode
+evolves by its eigenvalue z / dt with z = dt D_i lambda <= 0, so diffusion can be taken
+exactly (exponential time differencing, Cox and Matthews, J. Comput. Phys. 176, 2002) or
+implicitly, and only the reaction N is explicit. dt is then bounded by the reaction's
+accuracy and stability, not by dt D rho <= 2.
+
+Every step reads the reaction in cell space and the diffusion in the eigenbasis, so its
+cost is a few transforms (counted per solver below); a transform costs several Euler
+steps on a CPU, which is why a larger step must pay for them.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._bounds import Barrier
+from ..domains import Lattice
+from ..models import AbstractModel, per_species
+from ._base import AbstractSolver
+from ._phi import phi
+
+
+def _state_dependent(model) -> bool:
+    """Whether the model's parameters (and so perhaps its rates) follow the state."""
+    return type(model).at is not AbstractModel.at
+
+
+def _rate_vector(model):
+    """The per-species diffusion rates as a (species,) vector (uniform rates only)."""
+    rates = jnp.asarray(model.diffusion())
+    return rates.reshape(rates.shape[0])
+
+
+class _TransformSolver(AbstractSolver):
+    """Shared by ETDRK and IMEX: where they run, and the step's plumbing."""
+
+    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+        who = f"solver={self.name}(order={self.order})"
+        if not isinstance(domain, Lattice):
+            raise ValueError(f"{who} runs on the square Lattice, whose stencil the FFT or DCT diagonalises; the "
+                             f"{domain.description} has no such basis: use solver=mj.Euler() there")
+        if domain.polarised_cells and domain.anisotropic:
+            raise ValueError(f"{who} needs isotropic diffusion: anisotropic links are not diagonal in the FFT/DCT "
+                             "basis; use solver=mj.Euler()")
+        shape = tuple(jnp.shape(model.diffusion()))
+        if len(shape) > 1 and shape[1:] not in ((1, 1),):
+            raise ValueError(f"{who} needs one diffusion rate per species; {type(model).__name__} diffuses with a "
+                             f"rate map of shape {shape}, which the FFT/DCT basis does not diagonalise: use "
+                             "solver=mj.Euler()")
+        if dynamic:
+            raise ValueError(f"{who} steps a fixed lattice: a growing state's active region changes size, which a "
+                             "fixed transform cannot diagonalise. Run growing phases with solver=mj.Euler() (an "
+                             "Experiment can give each phase its own solver)")
+        if sources:
+            raise ValueError(f"{who}: sources add a fixed amount per step, so their total would change with dt; "
+                             "run phases with sources with solver=mj.Euler()")
+
+    def check_dt(self, domain, dt, model) -> None:
+        # diffusion is exact (ETDRK) or implicit (IMEX): no diffusion limit. The reaction's
+        # own limit depends on the state and is not checked; a blow-up is reported with its step.
+        return None
+
+    def make_advance(self, model, domain: Lattice, dt, bounds, shape):
+        """advance(acting model, x) -> x after one step, before sources and the clamp."""
+        lam = jnp.asarray(domain.eigenvalues(shape), dt.dtype)
+        barrier = bounds if isinstance(bounds, Barrier) else None
+
+        def coefficients(m):
+            z = dt * _rate_vector(m)[:, None, None] * lam
+            return self.coefficients(z, dt)
+
+        fixed = None if _state_dependent(model) else coefficients(model)
+
+        def advance(acting, x):
+            lower, upper = per_species(acting.lower, 2), per_species(acting.upper, 2)
+            rates = per_species(_rate_vector(acting), 2)
+
+            def reaction(y):
+                r = acting.reaction(y)
+                terms = [r[i] + (barrier.terms(y[i], lower[i], upper[i]) if barrier is not None else 0.0)
+                         for i in range(y.shape[0])]
+                return jnp.stack(terms)
+
+            def euler_rate(y):  # reaction + diffusion, the stencil applied in cell space
+                return reaction(y) + rates * domain.apply(y)
+
+            co = fixed if fixed is not None else coefficients(acting)
+            return self.advance(co, x, reaction, euler_rate, domain.transform,
+                                lambda c: domain.inverse_transform(c, shape))
+
+        return advance
+
+
+class ETDRK(_TransformSolver):
+    """Exponential time differencing with Runge-Kutta stages (Cox and Matthews 2002),
+    diffusion exact on the stencil's eigenvalues, the reaction explicit.
+
+    order=1: x + F^-1[dt phi_1(z) F(R(x))], R the Euler rate (2 transforms a step);
+    order=2: Cox-Matthews ETD2RK (4 transforms); order=4: ETDRK4 in Kassam and
+    Trefethen's form (9 transforms). phi-functions by contour means (`_phi`), stable at
+    the zero mode and in float32. Exact for pure diffusion at any dt, and with the reaction
+    accurate to the given order in dt. Runs on the square `Lattice` with one diffusion
+    rate per species, isotropic, without growth or sources (use `Euler` there).
+    """
+
+    _order: int = eqx.field(static=True)
+
+    def __init__(self, order: int = 2):
+        if order not in (1, 2, 4):
+            raise ValueError(f"ETDRK.order must be 1, 2 or 4 (got {order!r})")
+        self._order = int(order)
+
+    @property
+    def order(self) -> int:
+        return self._order
+
+    def coefficients(self, z, dt):
+        if self._order == 1:
+            return {"p1": dt * phi(z, 1)}
+        if self._order == 2:
+            return {"p1": dt * phi(z, 1), "p2": dt * phi(z, 2)}
+        p1, p2, p3 = phi(z, 1), phi(z, 2), phi(z, 3)
+        return {"E": jnp.exp(z), "E2": jnp.exp(z / 2), "Q": dt / 2 * phi(z / 2, 1),
+                "f1": dt * (p1 - 3 * p2 + 4 * p3), "f2": dt * (p2 - 2 * p3), "f3": dt * (4 * p3 - p2)}
+
+    def advance(self, co, x, reaction, euler_rate, fwd, inv):
+        if self._order == 1:
+            return x + inv(co["p1"] * fwd(euler_rate(x)))
+        if self._order == 2:
+            nx = reaction(x)
+            a = x + inv(co["p1"] * fwd(euler_rate(x)))
+            return a + inv(co["p2"] * fwd(reaction(a) - nx))
+        v = fwd(x)
+        nv = fwd(reaction(x))
+        a = co["E2"] * v + co["Q"] * nv
+        na = fwd(reaction(inv(a)))
+        b = co["E2"] * v + co["Q"] * na
+        nb = fwd(reaction(inv(b)))
+        c = co["E2"] * a + co["Q"] * (2 * nb - nv)
+        nc = fwd(reaction(inv(c)))
+        return inv(co["E"] * v + co["f1"] * nv + 2 * co["f2"] * (na + nb) + co["f3"] * nc)
+
+
+# Ascher, Ruuth and Spiteri's IMEX (2,2,2) scheme (Appl. Numer. Math. 25, 1997): L-stable,
+# stiffly accurate, second order, two implicit stages.
+_ARS_GAMMA = 1.0 - 2.0 ** -0.5
+_ARS_DELTA = 1.0 - 1.0 / (2.0 * _ARS_GAMMA)
+
+
+class IMEX(_TransformSolver):
+    """Implicit diffusion, explicit reaction, solved exactly on the stencil's eigenbasis.
+
+    order=1: backward Euler for diffusion, forward Euler for the reaction (SBDF1):
+    x + F^-1[dt / (1 - z) F(R(x))] (2 transforms a step); order=2: the L-stable IMEX
+    (2,2,2) Runge-Kutta scheme of Ascher, Ruuth and Spiteri (5 transforms). Unconditionally
+    stable in diffusion; damps the fastest modes where ETDRK is exact. Runs where `ETDRK`
+    runs (the square `Lattice`, one rate per species; conjugate gradients for other
+    operators are not implemented).
+    """
+
+    _order: int = eqx.field(static=True)
+
+    def __init__(self, order: int = 2):
+        if order not in (1, 2):
+            raise ValueError(f"IMEX.order must be 1 or 2 (got {order!r})")
+        self._order = int(order)
+
+    @property
+    def order(self) -> int:
+        return self._order
+
+    def coefficients(self, z, dt):
+        if self._order == 1:
+            return {"h": dt / (1.0 - z)}
+        return {"z": z, "solve": 1.0 / (1.0 - _ARS_GAMMA * z), "dt": dt}
+
+    def advance(self, co, x, reaction, euler_rate, fwd, inv):
+        if self._order == 1:
+            return x + inv(co["h"] * fwd(euler_rate(x)))
+        g, d, h = _ARS_GAMMA, _ARS_DELTA, co["dt"]
+        v = fwd(x)
+        nx = reaction(x)
+        u1 = co["solve"] * (v + h * g * fwd(nx))
+        n1 = reaction(inv(u1))
+        u2 = co["solve"] * (v + (1.0 - g) * co["z"] * u1 + h * fwd(d * nx + (1.0 - d) * n1))
+        return inv(u2)
