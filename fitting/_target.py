@@ -13,6 +13,7 @@ refused; fewer than WARN_WAVELENGTHS gives a warning.
 from __future__ import annotations
 
 import dataclasses
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -68,9 +69,49 @@ class Target:
                 "lattice": list(self.field.shape), "pixels": list(self.pixels.shape)}
 
 
+PIXEL_BYTES = 64  # memory a photo's pixel costs in a fit (its float64 channels, normalised and resampled)
+DEEP_MODES = {"I;16": 65535.0, "I;16B": 65535.0, "I;16L": 65535.0, "I;16N": 65535.0}  # 16-bit greys
+
+
+def open_image(path: Path, what: str) -> Image.Image:
+    """The image at `path`, loaded (EXIF rotation applied) after its size, read from its header,
+    was checked against the memory limit; any failure is a ValueError naming the file."""
+    from morphojax._checks import check_memory  # the package's one memory limit (MORPHOJAX_MAX_MEMORY)
+
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{what}: {path} is not a regular file")
+    try:
+        with Image.open(path) as im:
+            width, height = im.size  # from the header: nothing decoded yet
+            check_memory(width * height * PIXEL_BYTES, f"{what}: the {width}x{height} image {path}")
+            im = ImageOps.exif_transpose(im)
+            im.load()
+            return im
+    except FileNotFoundError:
+        raise ValueError(f"cannot read image {path}: no such file") from None
+    except Image.DecompressionBombError as err:  # Pillow's guard against huge images
+        raise ValueError(f"{what}: {path} is too large to open safely ({err}); crop or "
+                         "downscale it first (at most about 180 megapixels)") from None
+    except ValueError:
+        raise
+    except (UnidentifiedImageError, OSError, SyntaxError, EOFError, struct.error, TypeError, IndexError,
+            MemoryError) as err:  # what Pillow's decoders raise on a broken file
+        raise ValueError(f"cannot read image {path}: {str(err).strip() or type(err).__name__}") from None
+
+
 def _channel(img: Image.Image, channel: str) -> np.ndarray:
     if channel not in CHANNELS:
         raise ValueError(f"unknown channel {channel!r}; allowed: {', '.join(CHANNELS)}")
+    if img.mode in DEEP_MODES or img.mode in ("I", "F"):  # one deep grey channel: read at its depth
+        if channel == "alpha":
+            raise ValueError("channel 'alpha' requested but the image has no alpha channel")
+        grey = np.asarray(img, np.float64)
+        if channel == "saturation":
+            return np.zeros_like(grey)
+        if not np.isfinite(grey).all():
+            raise ValueError("the image holds NaN or infinite pixels")
+        depth = DEEP_MODES.get(img.mode) or (65535.0 if img.mode == "I" and grey.max(initial=0) <= 65535 else 1.0)
+        return grey / depth
     if channel == "alpha":
         if "A" not in img.getbands():
             raise ValueError("channel 'alpha' requested but the image has no alpha channel")
@@ -167,17 +208,7 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
     """
     if isinstance(source, (str, Path)):
         path = Path(source)
-        try:
-            with Image.open(path) as im:
-                im = ImageOps.exif_transpose(im)
-                im.load()
-        except FileNotFoundError:
-            raise ValueError(f"cannot read image {path}: no such file") from None
-        except Image.DecompressionBombError as err:  # Pillow's guard against huge images
-            raise ValueError(f"load_target.source: {path} is too large to open safely ({err}); crop or "
-                             "downscale it first (at most about 180 megapixels)") from None
-        except (UnidentifiedImageError, OSError) as err:
-            raise ValueError(f"cannot read image {path}: {err}") from None
+        im = open_image(path, "load_target.source")
         name = str(path)
     elif isinstance(source, Image.Image):
         im, name = ImageOps.exif_transpose(source), "<image>"

@@ -66,11 +66,20 @@ def gradient_from_photo(source, crop=None, k: int = 3, pigment: str = "dark", se
 
     check_choice(pigment, "pigment", ("dark", "light"))
     if isinstance(source, (str, Path)):
+        from ._checks import check_memory
+        from ._serialise import check_regular_file
+
+        check_regular_file(source, "image")
         try:
             with Image.open(source) as im:
+                check_memory(im.size[0] * im.size[1] * 16, f"Gradient.from_photo: the {im.size[0]}x{im.size[1]} "
+                             f"image {source}")  # its size, from the header, before it is decoded
                 img = ImageOps.exif_transpose(im).convert("RGB")
-        except (FileNotFoundError, OSError) as err:
-            raise ValueError(f"Gradient.from_photo: cannot read image {source}: {err}") from None
+        except ValueError:
+            raise
+        except (OSError, SyntaxError, EOFError, TypeError, IndexError, MemoryError, Image.DecompressionBombError) as err:
+            raise ValueError(f"Gradient.from_photo: cannot read image {source}: "
+                             f"{str(err).strip() or type(err).__name__}") from None
     elif isinstance(source, Image.Image):
         img = source.convert("RGB")
     else:

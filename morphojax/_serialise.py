@@ -15,20 +15,28 @@ import dataclasses
 import json
 import math
 import os
+import stat
+import struct
 import tempfile
+import warnings
+import zipfile
+import zlib
+from contextlib import contextmanager
 from pathlib import Path
 
 import jax
 import numpy as np
+from numpy.lib import format as npformat
 
 from ._bounds import Barrier
-from ._checks import is_concrete
+from ._checks import STEP_COUNTER_MAX, cells_of, check_memory, is_concrete
 from .domains import AbstractDomain, HexLattice, Lattice, Mesh
 from ._growth import Growth, Source
 from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott,
                      Modulated, Modulation, Morphogen, Reaction, Reinforcement, RuleReinforcement, Schnakenberg,
                      ThesisReinforcement, Turing)
 from ._state import State
+from ._version import __version__
 
 # the models a file can rebuild (a Reaction's file cannot: its function is code)
 MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement, FitzHughNagumo, GiererMeinhardt,
@@ -269,12 +277,49 @@ def save_npz(path, state: State, metadata: dict) -> Path:
     return write_npz(path, metadata=np.asarray(dumps(meta)), **arrays)
 
 
+FORMAT_VERSION = 1  # the format number every file's metadata records (with the morphojax version)
+
+
+def stamp(meta: dict) -> dict:
+    """`meta` with the morphojax version and the format number that wrote it."""
+    return {**meta, "morphojax": meta.get("morphojax") or __version__,
+            "format_version": meta.get("format_version", FORMAT_VERSION)}
+
+
+def _version_tuple(text) -> tuple:
+    parts = []
+    for piece in str(text).split("."):
+        digits = "".join(ch for ch in piece if ch.isdigit()) if piece[:1].isdigit() else ""
+        if not digits:
+            break
+        parts.append(int(digits))
+    return tuple(parts)
+
+
+def check_file_version(meta: dict, path=None) -> None:
+    """Warn when a file was written by a newer morphojax or format than this one reads."""
+    where = f"{path} was" if path is not None else "this file was"
+    written, fmt = meta.get("morphojax"), meta.get("format_version")
+    if isinstance(fmt, int) and not isinstance(fmt, bool) and fmt > FORMAT_VERSION:
+        warnings.warn(f"{where} written in file format {fmt} (morphojax {written}); this morphojax "
+                      f"{__version__} reads format {FORMAT_VERSION}, and fields it does not know are ignored",
+                      stacklevel=3)
+    elif isinstance(written, str) and _version_tuple(written) > _version_tuple(__version__):
+        warnings.warn(f"{where} written by morphojax {written}, newer than this morphojax {__version__}",
+                      stacklevel=3)
+
+
 def write_npz(path, **arrays) -> Path:
     """`np.savez_compressed` that never leaves a half-written file (see `write_atomically`).
-    Like NumPy, adds `.npz` when `path` has no such suffix."""
+    Like NumPy, adds `.npz` when `path` has no such suffix. A JSON `metadata` entry gets the
+    morphojax version and the format number (`stamp`)."""
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
+    if "metadata" in arrays:
+        meta = json.loads(str(np.asarray(arrays["metadata"])))
+        if isinstance(meta, dict):
+            arrays["metadata"] = np.asarray(json.dumps(stamp(meta)))
 
     def write(tmp):
         with open(tmp, "wb") as handle:
@@ -305,26 +350,130 @@ def write_atomically(path, write) -> Path:
     return path
 
 
+# ---- reading: every archive checked before it is loaded, every failure one ValueError ---------
+METADATA_LIMIT = 64 * 2**20  # bytes of JSON metadata a file may declare
+BOMB_SIZE = 256 * 2**20  # a member declaring more than this ...
+BOMB_RATIO = 200  # ... that expands more than this from its compressed size is refused
+# what a broken archive raises inside zipfile, zlib and numpy (flipped bytes give "Bad CRC-32",
+# a truncated member EOFError, a lying header TypeError / IndexError / struct.error)
+READ_ERRORS = (KeyError, OSError, ValueError, EOFError, TypeError, IndexError, AttributeError, OverflowError,
+               MemoryError, UnicodeError, json.JSONDecodeError, zipfile.BadZipFile, zlib.error, struct.error)
+
+
+def check_regular_file(path, what: str) -> Path:
+    """`path` as a Path when it names an existing regular file; a folder, a named pipe or a
+    device (`/dev/zero`) is refused, so a read never blocks or runs forever."""
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise ValueError(f"no such {what} file: {path}") from None
+    except OSError as err:
+        raise ValueError(f"cannot read {what} file {path}: {err.strerror or err}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a folder" if stat.S_ISDIR(mode) else "not a regular file (a pipe, a device or a socket)"
+        raise ValueError(f"{what} file {path} is {kind}")
+    return path
+
+
+def npz_members(path, what: str = "npz") -> dict:
+    """{member name: (shape, dtype)} of a `.npz`, read from each member's header without
+    loading its data; refuses an archive whose members would need more memory than the limit
+    (`_checks.memory_limit`), expand like a decompression bomb, or disagree with their headers."""
+    path = check_regular_file(path, what)
+    members, total = {}, 0
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for info in archive.infolist():
+                name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+                with archive.open(info) as handle:
+                    version = npformat.read_magic(handle)
+                    reader = {(1, 0): npformat.read_array_header_1_0, (2, 0): npformat.read_array_header_2_0,
+                              (3, 0): getattr(npformat, "_read_array_header", None)}.get(version)
+                    if reader is None:
+                        raise ValueError(f"member {name!r} has an unknown .npy version {version}")
+                    shape, _, dtype = (reader(handle) if version != (3, 0) else reader(handle, version))
+                if dtype.hasobject:
+                    raise ValueError(f"member {name!r} holds Python objects, which morphojax never writes")
+                nbytes = cells_of(shape) * dtype.itemsize
+                if nbytes > info.file_size:  # the header claims more data than the member holds
+                    raise ValueError(f"member {name!r} declares {nbytes} bytes of data but holds {info.file_size}")
+                if name == "metadata" and nbytes > METADATA_LIMIT:
+                    raise ValueError(f"its metadata declares {nbytes / 2**20:.0f} MB; at most "
+                                     f"{METADATA_LIMIT // 2**20} MB is read")
+                if info.file_size > BOMB_SIZE and info.file_size > BOMB_RATIO * max(info.compress_size, 1):
+                    raise ValueError(f"member {name!r} expands from {info.compress_size / 1e6:.3g} MB to "
+                                     f"{info.file_size / 1e9:.3g} GB, more than {BOMB_RATIO} times (a decompression "
+                                     "bomb?)")
+                members[name] = (tuple(shape), dtype)
+                total += nbytes
+    except READ_ERRORS as err:
+        raise ValueError(f"{path} is not a morphojax {what} file ({_why(err)})") from None
+    check_memory(total, f"reading {path}")
+    return members
+
+
+@contextmanager
+def open_npz(path, what: str = "npz"):
+    """`np.load(path)` of a checked archive (`npz_members`); any error while it is read, in the
+    archive or in what the caller does with its arrays, is a ValueError naming the file."""
+    path = Path(path)
+    npz_members(path, what)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            yield data
+    except READ_ERRORS as err:
+        if isinstance(err, ValueError) and str(err).startswith(str(path)):
+            raise
+        raise ValueError(f"{path} is not a morphojax {what} file ({_why(err)})") from None
+
+
+def read_metadata(data, path=None) -> dict:
+    """The JSON `metadata` member of an open archive as a dict (infinities restored)."""
+    if "metadata" not in data.files:
+        raise KeyError("metadata")
+    meta = json.loads(str(data["metadata"]))
+    if not isinstance(meta, dict):
+        raise ValueError(f"its metadata is a JSON {type(meta).__name__}, not an object")
+    check_file_version(meta, path)
+    return from_jsonable(meta)
+
+
+def _why(err) -> str:
+    """What went wrong, in words: the exception's message, or its kind when it has none."""
+    if isinstance(err, KeyError):
+        return f"no {err.args[0]!r} entry" if err.args else "a missing entry"
+    text = str(err).strip()
+    return f"{type(err).__name__}: {text}" if text and not isinstance(err, ValueError) else (text or type(err).__name__)
+
+
 def read_npz(path, what: str, parse):
     """Open a morphojax `.npz` and return (metadata, parse(metadata, data)).
 
     `data` is the open archive; a missing file, or one that is not what `parse` expects
     (it raises KeyError or ValueError), is a ValueError naming `what` ("result", "sweep").
     """
-    path = Path(path)
-    if not path.exists():
-        raise ValueError(f"no such {what} file: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = from_jsonable(json.loads(str(data["metadata"])))
-            return meta, parse(meta, data)
-    except (KeyError, OSError, ValueError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path} is not a morphojax {what} file ({err})") from err
+    with open_npz(path, what) as data:
+        meta = read_metadata(data, path)
+        return meta, parse(meta, data)
 
 
 def load_npz(path) -> tuple[State, dict]:
-    """Read a result written by `save_npz`: (State with its capacity, step and time; metadata)."""
-    meta, arrays = read_npz(path, "result", lambda meta, data: [data[f"species_{n}"] for n in meta["species"]])
+    """Read a result written by `save_npz`: (State with its capacity, step and time; metadata).
+    Metadata that disagrees with itself or with the arrays is refused, naming the field."""
+
+    def parse(meta, data):
+        names = meta.get("species")
+        if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names) \
+                or len(set(names)) != len(names):
+            raise ValueError(f"metadata field 'species' must list distinct species names (got {names!r})")
+        return [np.asarray(data[f"species_{n}"]) for n in names]
+
+    meta, arrays = read_npz(path, "result", parse)
+    try:
+        check_result(meta, arrays)
+    except ValueError as err:
+        raise ValueError(f"{path} is not a valid morphojax result ({err})") from None
     capacity = tuple(meta.get("capacity") or arrays[0].shape)
     # a growing state saved once it filled its capacity is still a growing state
     grows = bool(meta.get("growable", False)) or capacity != tuple(arrays[0].shape)
@@ -332,3 +481,65 @@ def load_npz(path) -> tuple[State, dict]:
     state = State(state.fields, state.size, meta.get("step", 0), meta.get("time", 0.0), state.names,
                   growable=state.growable)
     return state, meta
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _int_field(meta, field, low=0, high=STEP_COUNTER_MAX, where="metadata field"):
+    value = meta[field]
+    if not _is_int(value) or not low <= value <= high:
+        raise ValueError(f"{where} {field!r} must be a whole number in [{low}, {high}] (got {value!r})")
+    return value
+
+
+def check_result(meta: dict, arrays) -> None:
+    """The one validator of a result's metadata: its fields against each other and against
+    its species arrays (one per name in `species`). Raises ValueError naming the field."""
+    shape = arrays[0].shape
+    for name, a in zip(meta["species"], arrays):
+        if a.shape != shape or a.ndim not in (1, 2, 3) or a.dtype.kind not in "fiu":
+            raise ValueError(f"species {name!r} is a {a.ndim}D {a.dtype} array of shape {a.shape}; every species "
+                             f"must be a real array of one shape, 1D to 3D (the first is {shape})")
+    for field in ("size", "capacity"):
+        if meta.get(field) is None:
+            continue
+        value = meta[field]
+        if not isinstance(value, list) or len(value) != len(shape) or not all(_is_int(v) and v >= 1 for v in value):
+            raise ValueError(f"metadata field {field!r} must list {len(shape)} positive whole numbers (got {value!r})")
+    if meta.get("size") is not None and tuple(meta["size"]) != shape:
+        raise ValueError(f"metadata field 'size' {meta['size']} disagrees with the arrays' shape {list(shape)}")
+    if meta.get("capacity") is not None and any(c < s for c, s in zip(meta["capacity"], shape)):
+        raise ValueError(f"metadata field 'capacity' {meta['capacity']} is smaller than the arrays {list(shape)}")
+    if "step" in meta:
+        _int_field(meta, "step")
+    if "time" in meta and (isinstance(meta["time"], bool) or not isinstance(meta["time"], (int, float))
+                           or not math.isfinite(meta["time"]) or meta["time"] < 0):
+        raise ValueError(f"metadata field 'time' must be a finite number >= 0 (got {meta['time']!r})")
+    experiment = meta.get("experiment")
+    if experiment is None:
+        return
+    if not isinstance(experiment, dict) or not isinstance(experiment.get("phases"), list) or not experiment["phases"] \
+            or not all(isinstance(p, dict) and _is_int(p.get("steps")) and p["steps"] >= 0 for p in experiment["phases"]):
+        raise ValueError("metadata field 'experiment' must hold a list of phases, each with its whole number of steps")
+    run = meta.get("run")
+    if not isinstance(run, dict):
+        raise ValueError(f"metadata field 'run' is missing or not an object (got {run!r}); a result of an "
+                         "experiment records where its run stands")
+    phases = experiment["phases"]
+    phase = _int_field(run, "phase", 0, len(phases), "run field") if "phase" in run else 0
+    high = phases[phase]["steps"] - 1 if phase < len(phases) else 0
+    step_in = _int_field(run, "phase_step", 0, max(high, 0), "run field") if "phase_step" in run else 0
+    origin = run.get("phase_origin")
+    if origin is not None:
+        _int_field(run, "phase_origin", 0, meta.get("step", STEP_COUNTER_MAX), "run field")
+        if step_in and "step" in meta and origin + step_in != meta["step"]:
+            raise ValueError(f"run fields 'phase_origin' ({origin}) + 'phase_step' ({step_in}) disagree with "
+                             f"metadata field 'step' ({meta['step']})")
+    seed, key = run.get("seed"), run.get("key")
+    if seed is not None and not _is_int(seed):
+        raise ValueError(f"run field 'seed' must be a whole number or null (got {seed!r})")
+    if seed is None and key is not None and not (isinstance(key, list) and all(_is_int(k) and 0 <= k < 2**32
+                                                                                for k in key)):
+        raise ValueError(f"run field 'key' must list 32-bit words (got {key!r})")

@@ -47,11 +47,48 @@ def load_cells(path) -> tuple[Cells, dict]:
         return {name: np.asarray(data[name]) for name in data.files if name != "metadata"}
 
     meta, arrays = read_npz(path, "cells", parse)
+    try:
+        return _cells_from(meta, arrays)
+    except (KeyError, TypeError, IndexError, ValueError, OverflowError) as err:
+        why = f"no {err.args[0]!r} entry" if isinstance(err, KeyError) else str(err)
+        raise ValueError(f"{path} is not a valid morphojax cells file ({why})") from None
+
+
+def _cells_from(meta, arrays):
+    """Cells from the checked metadata and arrays of a cells file."""
+    for field, kind in (("species", list), ("anisotropic", list), ("capacity", int), ("step", int)):
+        if not isinstance(meta.get(field), kind) or isinstance(meta.get(field), bool):
+            raise ValueError(f"metadata field {field!r} must be a JSON {kind.__name__} (got {meta.get(field)!r})")
+    if not all(isinstance(n, str) for n in meta["species"]):
+        raise ValueError(f"metadata field 'species' must list names (got {meta['species']!r})")
+    if len(meta["anisotropic"]) != len(meta["species"]):
+        raise ValueError(f"metadata field 'anisotropic' has {len(meta['anisotropic'])} entries for "
+                         f"{len(meta['species'])} species")
+    if meta["step"] < 0:
+        raise ValueError(f"metadata field 'step' must be >= 0 (got {meta['step']})")
+    position = arrays.pop("position")
+    if position.ndim != 2 or not np.issubdtype(position.dtype, np.floating):
+        raise ValueError(f"its positions must be an (n, 2) float array (got {position.ndim}D {position.dtype})")
+    if not np.isfinite(position).all():
+        raise ValueError("its cell positions hold NaN or infinite values")
+    if meta["capacity"] < len(position):
+        raise ValueError(f"metadata field 'capacity' ({meta['capacity']}) is smaller than its {len(position)} cells")
+    for name, values in arrays.items():
+        if values.dtype.kind not in "biuf":
+            raise ValueError(f"its array {name!r} holds {values.dtype}, not numbers")
+        per_species = name in ("concentration", "diffusion")
+        if name in ("lower", "upper", "status") or (per_species and values.ndim != 2):
+            continue
+        if values.shape[-1] != len(position) or (per_species and len(values) != len(meta["species"])):
+            raise ValueError(f"its array {name!r} has shape {values.shape} for {len(position)} cells and "
+                             f"{len(meta['species'])} species")
+        if per_species and not np.isfinite(values).all():
+            raise ValueError(f"its array {name!r} holds NaN or infinite values")
     status = arrays.pop("status")
     upper = [None if np.isinf(u) else float(u) for u in arrays.pop("upper")]
     lower = arrays.pop("lower", None)  # files written before lower limits existed: the thesis's 0
     cells = make_cells(
-        meta["species"], arrays.pop("position"), **arrays, lower=lower, upper=upper,
+        meta["species"], position, **arrays, lower=lower, upper=upper,
         anisotropic=tuple(bool(a) for a in meta["anisotropic"]), capacity=int(meta["capacity"]), step=int(meta["step"]),
     )
     return cells.replace(**{name: jnp.asarray(int(v), jnp.int32) for name, v in zip(STATUS_FIELDS, status)}), meta

@@ -14,6 +14,7 @@ entry is a function `register(subparsers)` that adds its parser and sets `func` 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from importlib.metadata import entry_points
 
@@ -26,6 +27,8 @@ CORE_COMMANDS = (_run.register, _sweep.register, _ca.register, _mesh.register, _
 def build_parser() -> argparse.ArgumentParser:
     """The parser of every subcommand: the core's, then those registered by other packages."""
     parser = argparse.ArgumentParser(prog="morphojax", description="Differentiable pattern formation in JAX.")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the full traceback of an error (default: one line)")
     sub = parser.add_subparsers(dest="command", required=True)
     for register in CORE_COMMANDS:
         register(sub)
@@ -35,16 +38,33 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Run the command line `argv` (default: `sys.argv[1:]`); returns the exit status."""
+    """Run the command line `argv` (default: `sys.argv[1:]`); returns the exit status:
+    0 done, 2 bad input (a ValueError: one line saying what to change), 1 any other error
+    (one line; `morphojax --debug ...` shows its traceback), 130 interrupted."""
     args = build_parser().parse_args(argv)
+    debug = getattr(args, "debug", False)
     try:
         return int(args.func(args) or 0)
-    except ValueError as err:  # bad input: a clear message, no traceback
-        print(f"morphojax {args.command}: error: {err}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt as err:  # Ctrl-C: a line saying what is kept, no traceback
         print(f"morphojax {args.command}: {err or 'interrupted'}", file=sys.stderr)
         return 130
+    except ValueError as err:  # bad input: a clear message, no traceback
+        if debug:
+            raise
+        print(f"morphojax {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except (SystemExit, GeneratorExit):
+        raise
+    except BrokenPipeError:  # the reader went away (`morphojax presets | head`): nothing to say
+        sys.stdout = open(os.devnull, "w")
+        return 1
+    except Exception as err:  # anything else: one line, the traceback only with --debug
+        if debug:
+            raise
+        text = " ".join(str(err).split()) or "no message"
+        print(f"morphojax {args.command}: error: {type(err).__name__}: {text} (run `morphojax --debug "
+              f"{args.command} ...` for the traceback)", file=sys.stderr)
+        return 1
 
 
 __all__ = ["build_parser", "main"]

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 import morphojax as mj
-from morphojax._checks import check_range  # the library's range messages, for the flags
+from morphojax._checks import STEP_COUNTER_MAX, check_range, check_run_size  # the library's checks, for the flags
 from morphojax.presets import run_automaton, run_life_like
 
 from ._output import picture_path, report
@@ -64,7 +64,10 @@ def _run_ca(args) -> int:
     if args.dim not in (2, 3):  # the library takes any dimension; pictures and meshes need 2 or 3
         raise ValueError(f"--dim must be 2 or 3 (got {args.dim})")
     check_range(args.size, "--size (cells per side)", low=1)
-    check_range(args.steps, "--steps", low=0)
+    check_range(args.steps, "--steps", low=0, high=STEP_COUNTER_MAX)
+    species = 2 if args.rule else len(args.species or [DEFAULT_SPECIES]) + 1
+    check_run_size((int(args.size),) * int(args.dim), species,
+                   what=f"this automaton ({args.size}^{args.dim} cells, {species} states)")
     if args.p is not None:
         check_range(args.p, "--p (probability)", low=0.0, high=1.0)
     out = picture_path(args.out)

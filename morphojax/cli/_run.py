@@ -31,6 +31,8 @@ import morphojax as mj
 from morphojax.presets import lookup
 from morphojax.presets._automaton_outputs import default_scale, lattice_picture
 
+from morphojax._checks import check_picture, check_run_size, check_scale  # sizes checked before a run
+
 from ._output import picture_path, report
 
 GIF_FRAMES = 24  # snapshots a run takes for `--gif` (spread over its phases)
@@ -117,8 +119,25 @@ def presets_table(presets, width: int = TABLE_WIDTH) -> list[str]:
 # ---- run: dispatch on the preset's kind ------------------------------------------------------
 def _cmd_run(args):
     item = lookup(args.name)
+    check_scale(args.scale, "--scale")
+    if item.kind == "reaction-diffusion":  # sizes checked before anything runs
+        for exp in [mj.PRESETS[m].experiment(args.quick) for m in item.members] or [item.experiment(args.quick)]:
+            check_experiment_size(exp, args.scale, args.frames or args.gif is not None)
     out = picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png")
     return RUNNERS[item.kind](item, args, out)
+
+
+def check_experiment_size(exp, scale: int, frames: bool = False) -> None:
+    """Refuse an experiment whose lattice (its capacity), drawn `scale` pixels per cell, and
+    its snapshots would need more memory than the limit (`MORPHOJAX_MAX_MEMORY`)."""
+    initial = exp.initial
+    shape = tuple(initial.capacity or initial.shape)
+    species = max(p.model.n_species for p in exp.phases) + max((len(p.add_species) for p in exp.phases), default=0)
+    snapshots = 1 + (sum(GIF_FRAMES if not isinstance(p.frames, int) else max(p.frames, 0) for p in exp.phases)
+                     if frames else 0)
+    check_run_size(shape, species, members=snapshots, scale=scale,
+                   what=f"this run ({'x'.join(map(str, shape))} cells, {species} species, {snapshots} states, "
+                        f"{scale} pixels per cell)")
 
 
 def _run_automaton(item, args, out: Path):
@@ -250,8 +269,13 @@ def _descriptors(result) -> dict:
 
 # ---- resume and render -----------------------------------------------------------------------
 def _cmd_resume(args):
+    check_scale(args.scale, "--scale")
     state, meta = mj.load_npz(args.checkpoint)
+    if "experiment" not in meta:
+        raise ValueError(f"{args.checkpoint} holds no experiment to resume (a result of `simulate`, not of "
+                         "`morphojax run`)")
     exp = mj.load_experiment(meta)
+    check_experiment_size(exp, args.scale, args.frames or args.gif is not None)
     run = meta.get("run", {})
     if int(run.get("phase", 0)) >= len(exp.phases):
         print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
@@ -263,6 +287,8 @@ def _cmd_resume(args):
 
 
 def _cmd_render(args):
+    if args.scale is not None:
+        check_scale(args.scale, "--scale")
     out = picture_path(args.out)
     kind = file_kind(args.result)
     if args.palette_from is not None:
@@ -292,6 +318,7 @@ def _cmd_render(args):
         return 0
     state, meta = mj.load_npz(args.result)
     args.scale = 2 if args.scale is None else args.scale
+    check_picture(state.capacity, args.scale, f"the picture of {args.result}")
     if args.species is None and args.cmap is None and "experiment" in meta:
         mj.render_experiment(state, mj.load_experiment(meta), scale=args.scale).save(out)
         return 0
@@ -302,16 +329,11 @@ def _cmd_render(args):
 
 def file_kind(path: Path) -> str:
     """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton", "potts" or "cells"."""
-    import numpy as np
+    from morphojax._serialise import open_npz, read_metadata
 
-    if not Path(path).exists():
-        raise ValueError(f"no such result file: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            names = set(data.files)
-            meta = json.loads(str(data["metadata"])) if "metadata" in names else {}
-    except (OSError, ValueError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path} is not a morphojax .npz file ({err})") from err
+    with open_npz(path, "result") as data:
+        names = set(data.files)
+        meta = read_metadata(data, path) if "metadata" in names else {}
     if meta.get("format") == "morphojax-cells/1":
         return "cells"
     if "cells" in names:
@@ -329,9 +351,14 @@ def automaton_picture(path: Path, scale: int | None):
     """An automaton's saved cells as `morphojax ca` draws them (3D: slices)."""
     import numpy as np
 
-    with np.load(path, allow_pickle=False) as data:
-        cells, meta = np.asarray(data["cells"]), json.loads(str(data["metadata"]))
+    from morphojax._serialise import open_npz, read_metadata
+
+    with open_npz(path, "automaton") as data:
+        cells, meta = np.asarray(data["cells"]), read_metadata(data, path)
+        if cells.ndim not in (2, 3) or not np.issubdtype(cells.dtype, np.integer):
+            raise ValueError(f"its cells are {cells.ndim}D {cells.dtype}; an automaton's are 2D or 3D integers")
     scale = default_scale(cells.shape) if scale is None else scale
+    check_picture(cells.shape if cells.ndim == 2 else (8,) + cells.shape[1:], scale, f"the picture of {path}")
     if meta.get("automaton") == "LifeLike":
         return lattice_picture(1 - cells, 1, scale)
     params = meta.get("params")

@@ -22,11 +22,13 @@ from pathlib import Path
 import numpy as np
 
 import morphojax as mj
+from morphojax._checks import STEP_COUNTER_MAX, check_run_size, check_scale, check_shape  # sizes before a run
 
 from ._output import report
 
 _RANGE = re.compile(r"^\s*([^:]+):([^:]+):([^:]+)\s*$")
 DEFAULT_TIME = 100.0  # the leopard paper's Fig. 4 runs to t = 100
+MAX_MEMBERS = 10**6  # members of one sweep: its table, montage and files stay readable
 DT_SAFETY = 0.8  # default dt = DT_SAFETY x the explicit-Euler limit of the diffusion
 
 
@@ -78,6 +80,8 @@ def parse_values(name: str, text: str) -> list[float]:
             count = float(m.group(3))
             if count != int(count) or count < 1:
                 raise ValueError
+            if count > MAX_MEMBERS:  # refused before the values are made
+                raise ValueError(f"--vary {name}: {int(count)} values; a sweep has at most {MAX_MEMBERS} members")
             values = np.linspace(a, b, int(count)).tolist()
         elif ":" in text:
             raise ValueError
@@ -86,8 +90,12 @@ def parse_values(name: str, text: str) -> list[float]:
             if not parts:
                 raise ValueError
             values = [float(t) for t in parts]
-    except ValueError:
+    except ValueError as err:
+        if str(err):
+            raise
         raise ValueError(f"--vary {name}: bad values {text!r}; {hint}") from None
+    if len(values) > MAX_MEMBERS:
+        raise ValueError(f"--vary {name}: {len(values)} values; a sweep has at most {MAX_MEMBERS} members")
     return values
 
 
@@ -125,6 +133,15 @@ def build_sweep(args):
             growth = mj.Growth(rate=1.0)  # the rate is swept; the schedule needs a Growth
         _check_name(model, growth, name)
         vary[name] = _check_values(name, parse_values(name, text)).tolist()
+    members = math.prod(len(v) for v in vary.values())
+    if members > MAX_MEMBERS:
+        raise ValueError(f"--vary: {' x '.join(str(len(v)) for v in vary.values())} = {members} members; a sweep "
+                         f"has at most {MAX_MEMBERS}")
+    check_shape(args.shape, "--shape", ndim=2)
+    check_run_size(args.shape, model.n_species, members=members,
+                   what=f"this sweep ({members} members of {args.shape[0]}x{args.shape[1]} cells)")
+    if args.scale is not None:
+        check_scale(args.scale, "--scale")
     lattice = mj.Lattice(stencil=args.stencil, boundary=args.boundary)
     stencil = lattice.stencil
     if args.dt is None:
@@ -151,6 +168,9 @@ def build_sweep(args):
             raise ValueError(f"--time must be a finite non-negative number (got {time!r})")
         largest_dt = max(vary[DT]) if DT in vary else dt
         steps = int(math.ceil(time / largest_dt - 1e-9))
+    if not 0 <= steps <= STEP_COUNTER_MAX:
+        raise ValueError(f"--steps must lie in [0, {STEP_COUNTER_MAX}], what the step counter holds (got {steps}"
+                         f"{'' if args.steps is not None else ' from --time / dt'})")
     rows, cols = args.shape
     capacity = None
     if growth is not None:
@@ -158,6 +178,8 @@ def build_sweep(args):
         dts = vary.get(DT, [dt])
         n_exp = max(mj.Growth(rate=r).expansions(steps, d) for r in rates for d in dts)
         capacity = (rows + n_exp, cols + n_exp)
+        check_run_size(capacity, model.n_species, members=members,
+                       what=f"this sweep ({members} members growing to {capacity[0]}x{capacity[1]} cells)")
     kwargs = dict(steps=steps, dt=dt if dt is not None else min(vary[DT]), boundary=args.boundary, stencil=stencil,
                   growth=growth, batch_size=args.batch_size, devices=args.devices, key=args.seed,
                   species=args.species if args.species is not None else -1, progress=not args.no_progress)

@@ -324,30 +324,19 @@ class Mesh(AbstractDomain):
     # ---- construction --------------------------------------------------------------------
     @classmethod
     def from_file(cls, path, **options) -> "Mesh":
-        """Read an OBJ, PLY, STL or OFF triangle mesh with trimesh (quads are split;
-        duplicate vertices merged, as STL needs; unused vertices and degenerate faces are
-        then refused by the checks of `Mesh`)."""
-        path = Path(path)
-        ext = path.suffix.lower().lstrip(".")
-        if ext not in FORMATS:
-            raise ValueError(f"Mesh.from_file: unknown format {path.suffix!r}; allowed: {', '.join(FORMATS)}")
-        if not path.exists():
-            raise ValueError(f"Mesh.from_file: no such file {str(path)!r}")
+        """Read an OBJ, PLY, STL or OFF triangle mesh (`_mesh_files`: quads are split; the file's
+        vertex numbering is kept, except STL's corners, which are welded by position; NaN
+        coordinates, unused vertices and degenerate faces are refused by the checks of `Mesh`;
+        an OBJ's texture coordinates are kept, welded across their seams)."""
+        from ._mesh_files import read_mesh_file
+
+        data = read_mesh_file(path)
         try:
-            import trimesh
-        except ImportError as err:  # pragma: no cover
-            raise ImportError("Mesh.from_file needs trimesh: pip install trimesh") from err
-        loaded = trimesh.load(str(path), file_type=ext, force="mesh", process=True)
-        if len(getattr(loaded, "faces", ())) == 0:
-            raise ValueError(f"Mesh.from_file: {str(path)!r} holds no triangles")
-        uv = getattr(getattr(loaded, "visual", None), "uv", None)
-        if uv is None or len(uv) != len(loaded.vertices):
-            return cls(np.asarray(loaded.vertices), np.asarray(loaded.faces), **options)
-        # trimesh gives a vertex per (position, texture vertex) pair, which would cut the
-        # surface along every UV seam: weld the positions, keep the texture vertices
-        vertices, faces = weld(np.asarray(loaded.vertices), np.asarray(loaded.faces))
-        solid = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
-        return cls(vertices, faces[solid], uv=np.asarray(uv), uv_faces=np.asarray(loaded.faces)[solid], **options)
+            if "uv" in data:
+                return cls(data["vertices"], data["faces"], uv=data["uv"], uv_faces=data["uv_faces"], **options)
+            return cls(data["vertices"], data["faces"], **options)
+        except ValueError as err:
+            raise ValueError(f"Mesh.from_file: {path}: {err}") from None
 
     @classmethod
     def icosphere(cls, subdivisions: int = 3, radius: float = 1.0, **options) -> "Mesh":
