@@ -1,0 +1,107 @@
+"""The documentation without building it: every public name is in the API reference, the
+README stays short and its links and commands hold.
+
+The site itself is built strictly by `.ci/run` (`mkdocs build --strict`), where a hook also
+checks the rendered API pages; these tests read the Markdown and `mkdocs.yml` only, so they
+run fast and without the `docs` extra.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PACKAGES = ("morphojax", "morphojax.cells", "fitting")
+
+
+def _directives() -> dict[str, list[str]]:
+    """`::: identifier` directives of the API pages -> the option lines under each."""
+    found: dict[str, list[str]] = {}
+    for page in sorted((DOCS / "api").glob("*.md")):
+        lines = page.read_text(encoding="utf-8").splitlines()
+        for i, line in enumerate(lines):
+            match = re.match(r"^:::\s+([\w.]+)\s*$", line)
+            if not match:
+                continue
+            options = []
+            for following in lines[i + 1:]:
+                if following.strip() and not following.startswith((" ", "\t")):
+                    break
+                options.append(following.strip())
+            found[match.group(1)] = options
+    return found
+
+
+def _global_options() -> str:
+    return (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+
+
+def test_the_site_shows_public_members_with_or_without_docstrings():
+    config = _global_options()
+    # members are chosen by the packages' __all__ (griffe's "public"), and a member without a
+    # docstring is still listed, so nothing exported is silently left out
+    assert re.search(r"^\s+filters:\s*public\s*$", config, re.M)
+    assert re.search(r"^\s+show_if_no_docstring:\s*true\s*$", config, re.M)
+    for page in ("api/morphojax.md", "api/cells.md", "api/fitting.md"):
+        assert page in config, f"{page} is not in the site's navigation"
+        assert (DOCS / page).is_file()
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_public_name_is_in_the_api_reference(package):
+    module = importlib.import_module(package)
+    directives = _directives()
+    whole = directives.get(package)
+    assert whole is not None, f"no `::: {package}` directive in docs/api/"
+    assert not any(option.startswith("members:") for option in whole), (
+        f"`::: {package}` lists its members by hand; leave them to __all__ so new names appear")
+    missing = []
+    for name in module.__all__:
+        member = getattr(module, name)
+        if getattr(member, "__name__", None) == f"{package}.{name}" and f"{package}.{name}" not in directives:
+            missing.append(name)  # a submodule needs a page of its own
+    assert not missing, f"submodules of {package} without an API page: {missing}"
+
+
+def test_the_api_pages_document_the_packages_not_private_modules():
+    for identifier in _directives():
+        assert not any(part.startswith("_") for part in identifier.split(".")), identifier
+
+
+README = ROOT / "README.md"
+
+
+def test_the_readme_is_short_and_keeps_its_two_commands():
+    text = README.read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 260
+    assert "pip install -e . && morphojax run leopard" in text.splitlines()
+    assert 'pip install -e ".[test]" && python -m pytest' in text.splitlines()
+    # CI runs the README's test command verbatim
+    assert 'pip install -e ".[test]" && python -m pytest' in (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+
+
+def test_the_readme_links_stay_inside_the_repository():
+    text = README.read_text(encoding="utf-8")
+    targets = re.findall(r"\]\(([^)\s]+)\)", text) + re.findall(r'src="([^"]+)"', text)
+    for target in targets:
+        if re.match(r"[a-z]+://", target) or target.startswith("#"):
+            continue
+        path = target.split("#")[0]
+        assert not path.startswith(("/", "..")), f"README links outside the repository: {target}"
+        assert (ROOT / path).exists(), f"README links to a missing file: {target}"
+
+
+def test_pages_cite_the_bibliography_not_paper_numbers():
+    for page in DOCS.rglob("*.md"):
+        text = page.read_text(encoding="utf-8")
+        assert not re.search(r"\bpapers? 00[0-4]\b", text), f"{page.relative_to(ROOT)} says 'paper 00N'"
+    anchors = set(re.findall(r"#([a-z]+\d{4}|lundelius)\b", (DOCS / "bibliography.md").read_text(encoding="utf-8")))
+    anchors |= set(re.findall(r'id="([a-z]+\d*)"', (DOCS / "bibliography.md").read_text(encoding="utf-8")))
+    for page in DOCS.rglob("*.md"):
+        for anchor in re.findall(r"bibliography\.md#([\w-]+)", page.read_text(encoding="utf-8")):
+            assert anchor in anchors, f"{page.relative_to(ROOT)} cites a missing entry #{anchor}"
