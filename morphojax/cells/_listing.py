@@ -115,7 +115,7 @@ class Listing:
         texture: `texture size W H` or None; zoom: `zoom level Z` or None (unused).
         snaps: the `Snap` commands.
         warnings: what in the listing looks wrong but was read as written.
-        directory: where `create shape` files are looked up (None: the working directory).
+        directory: the only folder `create shape` files are read from (None: no file is read).
     """
 
     name: str = "<text>"
@@ -348,23 +348,27 @@ def _normalise_name(name: str) -> str:
     return str(name).strip().lower().replace(" ", "").replace("figure", "fig").replace("listinga.", "a.")
 
 
-def load_listing(source, *, name: str | None = None, directory=None) -> Listing:
+def load_listing(source, *, name: str | None = None, folder=None, directory=None) -> Listing:
     """Read an experiment (thesis 4.8) into a `Listing`.
 
     Args:
         source: a path to a listing file (str or Path), the name of a shipped listing
             (see `LISTINGS`, e.g. "A.18"), or the text itself.
         name: the name errors report (default: the file's stem, or "<text>").
-        directory: where `create shape` files are looked up (default: the file's
-            directory; for text, the working directory at `prepattern` time).
+        folder: the only folder `create shape` files are read from (default: the file's
+            folder; text has none, and reads no file unless `folder` names one).
+            `directory` is its older name.
 
     Every malformed line raises ValueError("<name>:<line>: <what is wrong> (got
     '<line>')"); unknown chemicals and mapped values are caught here, out-of-range `set`
     indices when the prepattern is built.
     """
+    if folder is not None and directory is not None:
+        raise ValueError("load_listing: give folder or directory (its older name), not both")
+    directory = folder if folder is not None else directory
     path = _as_path(source)
     if path is not None:
-        text = path.read_text()
+        text = _read_listing_file(path)
         name = path.stem if name is None else name
         directory = path.parent if directory is None else directory
     else:
@@ -373,9 +377,27 @@ def load_listing(source, *, name: str | None = None, directory=None) -> Listing:
     return Listing(**_Reader(text, name, None if directory is None else Path(directory)).read())
 
 
+LISTING_BYTES = 1 << 20  # a listing is a page of commands; the thesis's longest is 3 kB
+
+
+def _read_listing_file(path: Path) -> str:
+    """A listing file's text: a regular file of at most LISTING_BYTES, decoded as UTF-8 (else Latin-1)."""
+    from .._serialise import check_regular_file
+
+    path = check_regular_file(path, "listing")
+    size = path.stat().st_size
+    if size > LISTING_BYTES:
+        raise ValueError(f"listing file {path} holds {size} bytes; a listing has at most {LISTING_BYTES}")
+    raw = path.read_bytes()
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
 def _as_path(source) -> Path | None:
     if isinstance(source, Path):
-        if not source.is_file():
+        if not source.exists():
             raise ValueError(f"no listing file {str(source)!r}")
         return source
     if not isinstance(source, str):

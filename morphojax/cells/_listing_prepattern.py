@@ -7,6 +7,7 @@ makes the initial `Cells`. `Listing.prepattern` drives it, one key per command.
 from __future__ import annotations
 
 import math
+import stat
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -89,12 +90,7 @@ class _Prepattern:
         """Every letter of the file a cell of a square grid (4.8.3): the file's first row
         is the top one; cells are numbered from the lowest row up, left to right, and the
         letters' bounding box is centred on `at`."""
-        directory = self.listing.directory or Path.cwd()
-        path = Path(command.file) if Path(command.file).is_absolute() else directory / command.file
-        try:
-            rows = path.read_text().splitlines()
-        except OSError as err:
-            self.fail(command.line, f"cannot read the shape file {str(path)!r} ({err.strerror or err})")
+        rows = read_shape_file(self.listing.directory, command.file, lambda why: self.fail(command.line, why))
         cells = [(-r, c) for r, text in enumerate(rows) for c, ch in enumerate(text) if ch.isalpha()]
         if not cells:
             self.fail(command.line, f"the shape file {str(path)!r} holds no letter (each letter is a cell)")
@@ -144,3 +140,34 @@ def _uniform(key, n: int, amplitude: float) -> np.ndarray:
     if amplitude <= 0:
         return np.zeros(n)
     return np.asarray(jax.random.uniform(key, (n,), minval=-1.0, maxval=1.0), float) * amplitude
+
+
+SHAPE_FILE_BYTES = 1 << 20  # a shape file is a picture in letters: 1 MB is a million cells
+
+
+def read_shape_file(folder, name: str, fail) -> list[str]:
+    """The lines of the shape file `name`, a regular file inside the listing's `folder` (no
+    absolute path, no `..` out of it, no link leading out, no pipe or device), at most
+    SHAPE_FILE_BYTES; `fail(why)` reports anything else. A listing given as text has no
+    folder and reads no file unless `load_listing(text, folder=...)` names one."""
+    if folder is None:
+        fail(f"the shape file {name!r} cannot be read: a listing given as text has no folder; "
+             "name one with load_listing(text, folder=PATH)")
+    folder = Path(folder).resolve()
+    path = (folder / name).resolve()
+    if Path(name).is_absolute() or folder not in path.parents:
+        fail(f"the shape file {name!r} lies outside the listing's folder {str(folder)!r}; shape files are read "
+             "from that folder only")
+    try:
+        info = path.stat()
+    except OSError as err:
+        fail(f"cannot read the shape file {str(path)!r} ({err.strerror or err})")
+    if not stat.S_ISREG(info.st_mode):
+        fail(f"the shape file {str(path)!r} is not a regular file")
+    if info.st_size > SHAPE_FILE_BYTES:
+        fail(f"the shape file {str(path)!r} holds {info.st_size} bytes; at most {SHAPE_FILE_BYTES} are read")
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(SHAPE_FILE_BYTES + 1).decode("latin-1").splitlines()
+    except OSError as err:
+        fail(f"cannot read the shape file {str(path)!r} ({err.strerror or err})")

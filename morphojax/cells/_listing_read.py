@@ -31,6 +31,8 @@ from ._rules import Always, Chance, Change, Compare, Divide, Map, Polarize, Reac
 from ._space import PACKING_AREA, Box, Packed
 
 ACTIONS = ("change", "react", "divide", "map", "polarize")
+MAX_CELLS = 10**7  # cells a listing may create: the thesis's largest makes a few thousand
+MAX_PIXELS = 10**8  # pixels of a listing's texture
 COMMANDS = ("define", "use", "create", "set", "rule", "colormap", "snap", "stop", "texture", "zoom")
 
 
@@ -170,8 +172,14 @@ class _Reader:
             size = (line.number("the cell's x"), line.number("the cell's y"))
         elif kind in ("sqr_grid", "hex_grid"):
             size = (line.integer("the number of columns", low=1), line.integer("the number of rows", low=1))
+            if size[0] * size[1] > MAX_CELLS:
+                line.fail(f"a grid of {size[0]} x {size[1]} = {size[0] * size[1]} cells; a listing creates at most "
+                          f"{MAX_CELLS} cells")
         elif kind in ("sqr_circle", "hex_circle"):
             size = (line.number("the circle's radius", low=0.0, low_open=True),)
+            if size[0] ** 2 * 4 > MAX_CELLS:
+                line.fail(f"a circle of radius {size[0]:g} holds about {size[0] ** 2 * 3.1416:.3g} cells; a listing "
+                          f"creates at most {MAX_CELLS} cells")
         else:
             size, file = (), line.quoted('the shape\'s file name ("file.txt")')
         options: dict = {}
@@ -396,6 +404,8 @@ class _Reader:
     def texture(self, line: _Line) -> None:
         line.expect("size", "after 'texture'")
         size = (line.integer("the texture's width", low=1), line.integer("the texture's height", low=1))
+        if size[0] * size[1] > MAX_PIXELS:
+            line.fail(f"a texture of {size[0]} x {size[1]} pixels; at most {MAX_PIXELS} pixels")
         self.single(line, "texture", size, "texture size")
         line.end("at the end of the texture command")
 

@@ -13,6 +13,9 @@ from typing import TYPE_CHECKING, NoReturn
 from ._listing_write import _format_number
 from ._rules import AGE, BIRTH, NEIGHBORS, conc, diff, mapped
 
+FLOAT_MAX = 3.4028234663852886e38  # the largest float32
+INT_MAX = 2**31 - 1  # the largest int32
+
 if TYPE_CHECKING:
     from ._listing_read import _Reader
 
@@ -90,6 +93,8 @@ class _Line:
         if not NUMBER.fullmatch(token):
             self.fail(f"{what} must be a number, found '{token}'")
         value = float(token)
+        if not abs(value) <= FLOAT_MAX:  # the cells are float32: a larger number (or 1e400 = inf) cannot be held
+            self.fail(f"{what} must be a finite number within +-{FLOAT_MAX:.4g}, found {token}")
         if low is not None and (value <= low if low_open else value < low):
             self.fail(f"{what} must be {'>' if low_open else '>='} {_format_number(low)}, found {token}")
         return value
@@ -101,6 +106,8 @@ class _Line:
         value = int(token)
         if value < low:
             self.fail(f"{what} must be >= {low}, found {token}")
+        if value > INT_MAX:  # counters and indices are int32
+            self.fail(f"{what} must be <= {INT_MAX}, found {token}")
         return value
 
     def chemical(self, what: str = "a chemical name") -> str:
