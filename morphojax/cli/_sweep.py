@@ -91,7 +91,7 @@ def parse_values(name: str, text: str) -> list[float]:
                 raise ValueError
             values = [float(t) for t in parts]
     except ValueError as err:
-        if str(err):
+        if str(err).startswith("--vary"):  # the count check's own message
             raise
         raise ValueError(f"--vary {name}: bad values {text!r}; {hint}") from None
     if len(values) > MAX_MEMBERS:
