@@ -102,8 +102,8 @@ class ETDRK(_TransformSolver):
 
     order=1: x + F^-1[dt phi_1(z) F(R(x))], R the Euler rate (2 transforms a step);
     order=2: Cox-Matthews ETD2RK (4 transforms); order=4: ETDRK4 in Kassam and
-    Trefethen's form (9 transforms). phi-functions by contour means (`_phi`), stable at
-    the zero mode and in float32. Exact for pure diffusion at any dt, and with the reaction
+    Trefethen's form (9 transforms). The phi-functions (`_phi`) are accurate to float32
+    rounding at the zero mode and every other eigenvalue. Exact for pure diffusion at any dt, and with the reaction
     accurate to the given order in dt. Runs on the square `Lattice` with one diffusion
     rate per species, isotropic, without growth or sources (use `Euler` there).
     """

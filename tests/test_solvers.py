@@ -1,0 +1,196 @@
+"""The time-stepping policies: ETDRK and IMEX against a dense NumPy oracle, their order,
+exactness on pure diffusion, gradients against finite differences, and the steady-state
+stopping rule. Float64 where numbers are compared closely."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import morphojax as mj
+from morphojax.solvers._phi import phi
+from oracle import gray_scott_rates
+from solver_oracle import Stepper, phi as phi_oracle
+
+SHAPE = (6, 7)  # small and odd: the dense oracle has 42 x 42 matrices
+FEED, KILL, DU, DV = 0.037, 0.06, 0.2, 0.1
+SOLVERS = [mj.ETDRK(1), mj.ETDRK(2), mj.ETDRK(4), mj.IMEX(1), mj.IMEX(2)]
+
+
+def _start(shape=SHAPE, seed=0):
+    rng = np.random.default_rng(seed)
+    return 1.0 - 0.5 * rng.random(shape), 0.25 * rng.random(shape)
+
+
+def _gray_scott_reaction(x):
+    du, dv = gray_scott_rates(x[0], x[1], FEED, KILL, 0.0, 0.0)
+    return np.stack([du, dv])
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "no-flux"])
+@pytest.mark.parametrize("stencil", ["nine-point", "five-point"])
+def test_solvers_match_the_dense_oracle(boundary, stencil):
+    """Three steps at dt = 2 (beyond Euler's limit 1.875 for D = 0.2 on the nine-point
+    stencil) agree with the schemes written in the stencil matrix's own eigenvectors."""
+    with jax.enable_x64(True):
+        u, v = _start()
+        state = mj.State.from_arrays([u, v])
+        model = mj.GrayScott(FEED, KILL, DU, DV)
+        oracle = Stepper(SHAPE, boundary, stencil, [DU, DV], _gray_scott_reaction)
+        domain = mj.Lattice(stencil, boundary)
+        for solver in SOLVERS:
+            out = mj.simulate(model, state, 3, 2.0, domain=domain, solver=solver).fields
+            expect = np.stack([u, v])
+            for _ in range(3):
+                step = oracle.etdrk if isinstance(solver, mj.ETDRK) else oracle.imex
+                expect = np.maximum(step(expect, 2.0, solver.order), 0.0)  # the clamp at lower = 0
+            np.testing.assert_allclose(np.asarray(out), expect, rtol=0, atol=1e-11,
+                                       err_msg=f"{solver.name}({solver.order})")
+
+
+def _diffusion_only(rates):
+    return mj.Reaction(lambda x, p: 0.0 * x, diffusion=rates, lower=-np.inf)
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "no-flux"])
+def test_exponential_steps_are_exact_for_pure_diffusion(boundary):
+    """One step of dt = 25 (400x Euler's limit) equals exp(t D S) x, and conserves mass."""
+    with jax.enable_x64(True):
+        u, v = _start(seed=1)
+        oracle = Stepper(SHAPE, boundary, "nine-point", [1.0, 0.3], lambda x: 0 * x)
+        exact = oracle.etdrk(np.stack([u, v]), 25.0, 1)  # N = 0: e^z x, exactly
+        model = _diffusion_only([1.0, 0.3])
+        state = mj.State.from_arrays([u, v])
+        for order in (1, 2, 4):
+            out = np.asarray(mj.simulate(model, state, 1, 25.0, boundary, solver=mj.ETDRK(order)).fields)
+            np.testing.assert_allclose(out, exact, atol=1e-12)
+            np.testing.assert_allclose(out.sum(axis=(1, 2)), [u.sum(), v.sum()], rtol=1e-13)
+
+
+def test_phi_functions_in_float32_at_every_scale():
+    """Float32 to about one rounding from the zero mode to z = -1000, where the defining
+    formulas cancel (phi_3 at z = -1e-3 loses every digit in float32), and across the
+    switch from series to formula at |z| = 2."""
+    z = -np.concatenate([[0.0], np.logspace(-8, 3, 200)])
+    for k in (1, 2, 3):
+        got = np.asarray(phi(jnp.asarray(z, jnp.float32), k), float)
+        np.testing.assert_allclose(got, phi_oracle(z, k), rtol=5e-7, err_msg=f"phi_{k}")
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "no-flux"])
+def test_orders_of_convergence(boundary):
+    """Halving dt divides the error at t = 8 by 2^order (against the same solver at dt =
+    1/64), Gray-Scott in float64 with the limits not binding."""
+    with jax.enable_x64(True):
+        u, v = _start((9, 10), seed=2)
+        state = mj.State.from_arrays([u, v])
+        model = mj.GrayScott(FEED, KILL, DU, DV)
+        for solver in [mj.Euler()] + SOLVERS:
+            ref = mj.simulate(model, state, 512, 1 / 64, boundary, solver=solver).fields
+            errors = [float(jnp.abs(mj.simulate(model, state, int(8 / dt), dt, boundary, solver=solver).fields
+                                    - ref).max()) for dt in (0.5, 0.25)]
+            observed = np.log2(errors[0] / errors[1])
+            assert abs(observed - solver.order) < 0.25, (solver.name, solver.order, errors)
+
+
+@pytest.mark.parametrize("solver", [mj.ETDRK(4), mj.IMEX(2)], ids=["etdrk4", "imex2"])
+def test_gradients_match_finite_differences(solver):
+    with jax.enable_x64(True):
+        u, v = _start(seed=3)
+        state = mj.State.from_arrays([u, v])
+        weights = np.random.default_rng(4).random((2,) + SHAPE)
+
+        def loss(feed, du):
+            model = mj.GrayScott(feed, KILL, du, DV)
+            return jnp.sum(weights * mj.simulate(model, state, 6, 1.5, "no-flux", solver=solver).fields)
+
+        grad = jax.grad(loss, argnums=(0, 1))(FEED, DU)
+        eps = 1e-6
+        fd = ((loss(FEED + eps, DU) - loss(FEED - eps, DU)) / (2 * eps),
+              (loss(FEED, DU + eps) - loss(FEED, DU - eps)) / (2 * eps))
+        np.testing.assert_allclose(np.asarray(grad), np.asarray(fd), rtol=1e-6)
+        assert all(abs(float(g)) > 1e-6 for g in grad)
+
+
+@pytest.fixture(scope="module")
+def turing_start():
+    return mj.paper_state(jax.random.key(7), (24, 26))
+
+
+@pytest.mark.parametrize("solver", [mj.Euler(), mj.ETDRK(2)], ids=["euler", "etdrk2"])
+def test_steady_state_stops_at_the_first_small_change(turing_start, solver):
+    model, dt, tol = mj.Turing(4.0, 3.0), 0.02 if isinstance(solver, mj.Euler) else 0.1, 2e-3
+    run = mj.run_status(model, turing_start, 20000, dt, solver=solver, until=mj.SteadyState(tol))
+    k = int(run.state.step)
+    assert 0 < k < 20000 and int(run.nonfinite_step) == -1
+    np.testing.assert_allclose(float(run.steady_at), k * dt, rtol=1e-6)
+    np.testing.assert_allclose(float(run.state.time), k * dt, rtol=1e-6)
+    previous = mj.simulate(model, turing_start, k - 1, dt, solver=solver)
+    last = mj.simulate(model, previous, 1, dt, solver=solver)
+    earlier = mj.simulate(model, turing_start, k - 2, dt, solver=solver)
+    assert float(jnp.abs(last.fields - previous.fields).max()) / dt < tol
+    assert float(jnp.abs(previous.fields - earlier.fields).max()) / dt >= tol
+    np.testing.assert_array_equal(np.asarray(last.fields), np.asarray(run.state.fields))
+
+
+def test_steady_state_under_vmap_stops_each_member_on_its_own(turing_start):
+    model, tol = mj.Turing(4.0, 3.0), 2e-3
+
+    def stop(dt):
+        return mj.run_status(model, turing_start, 4000, dt, solver=mj.ETDRK(1), until=mj.SteadyState(tol)).steady_at
+
+    dts = jnp.asarray([0.05, 0.2])
+    batched = np.asarray(jax.vmap(stop)(dts))
+    alone = np.asarray([stop(dt) for dt in dts])
+    np.testing.assert_allclose(batched, alone, rtol=1e-6)
+    assert np.isfinite(batched).all() and batched[0] != batched[1]
+    never = mj.run_status(model, turing_start, 30, 0.05, solver=mj.ETDRK(1), until=mj.SteadyState(tol))
+    assert np.isnan(float(never.steady_at)) and int(never.state.step) == 30
+
+
+def test_gradient_through_a_stopping_rule_is_the_fixed_runs(turing_start):
+    """Reverse mode through the checkpointed loop: the gradient of the run that stopped at
+    step k equals the gradient of a plain k-step run."""
+    dt, tol = 0.1, 5e-2
+    weights = np.random.default_rng(5).random((2, 24, 26))
+
+    def loss(ratio, until=None, steps=3000):
+        model = mj.Turing(ratio, 3.0)
+        out = mj.simulate(model, turing_start, steps, dt, solver=mj.ETDRK(1), until=until)
+        return jnp.sum(weights * out.fields), out.step
+
+    (value, k), grad = jax.value_and_grad(loss, has_aux=True)(4.0, mj.SteadyState(tol))
+    (value_k, _), grad_k = jax.value_and_grad(loss, has_aux=True)(4.0, None, int(k))
+    assert 0 < int(k) < 3000
+    np.testing.assert_allclose(float(value), float(value_k), rtol=1e-6)
+    np.testing.assert_allclose(float(grad), float(grad_k), rtol=1e-4)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s, 2, 0.1, solver=mj.ETDRK(2), domain=mj.HexLattice()),
+     "square Lattice"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s.with_capacity((20, 20)), 2, 0.1, solver=mj.IMEX(1),
+                           growth=mj.Growth(rate=1.0), key=jax.random.key(0)), "growing"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s, 2, 0.1, solver=mj.ETDRK(1),
+                           sources=[mj.Source("a", 1.0)], key=jax.random.key(0)), "sources"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0).replace(scale=jnp.full((10, 10), 3.0)), s, 2, 0.1,
+                           solver=mj.ETDRK(1)), "rate map"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s, 2, 0.1, solver="rk4"), "solver must be"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s, 2, 0.01, until=1e-3), "until must be"),
+    (lambda s: mj.ETDRK(3), "ETDRK.order must be 1, 2 or 4"),
+    (lambda s: mj.IMEX(order=4), "IMEX.order must be 1 or 2"),
+    (lambda s: mj.SteadyState(tol=0.0), "SteadyState.tol"),
+])
+def test_refusals_name_what_to_use(call, message):
+    state = mj.paper_state(jax.random.key(0), (10, 10))
+    with pytest.raises(ValueError, match=message):
+        call(state)
+
+
+def test_the_diffusion_limit_is_eulers_only():
+    state = mj.paper_state(jax.random.key(0), (10, 10))
+    model = mj.Turing(40.0, 3.0)  # D_a = 120: Euler's limit is 0.003125
+    with pytest.raises(ValueError, match="explicit-Euler stability limit"):
+        mj.simulate(model, state, 2, 0.05)
+    out = mj.simulate(model, state, 2, 0.05, solver=mj.ETDRK(1))
+    assert np.isfinite(np.asarray(out.fields)).all()
