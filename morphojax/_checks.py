@@ -35,6 +35,8 @@ def as_float_array(value, name: str):
         raise ValueError(f"{name} must be a number or an array of numbers (got {value!r})") from err
     if not (jnp.issubdtype(arr.dtype, jnp.number) or arr.dtype == bool):
         raise ValueError(f"{name} must be a number or an array of numbers (got {value!r})")
+    if jnp.issubdtype(arr.dtype, jnp.complexfloating):  # casting would drop the imaginary part silently
+        raise ValueError(f"{name} must be real, not complex (got {value!r})")
     return jnp.asarray(arr, dtype=default_float())
 
 
@@ -144,7 +146,7 @@ def memory_limit() -> int:
 
 def _gb(nbytes: float) -> str:
     gb = nbytes / 1e9
-    return f"{gb:.3g} GB" if gb >= 0.01 else f"{nbytes / 1e6:.3g} MB"
+    return f"{gb:.3g} GB" if gb >= 1 else f"{nbytes / 1e6:.3g} MB"
 
 
 def check_memory(nbytes, what: str) -> None:

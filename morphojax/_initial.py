@@ -16,16 +16,18 @@ import math
 import jax
 import jax.numpy as jnp
 
-from ._checks import check_finite, check_range, default_float
+from ._checks import cells_of, check_finite, check_memory, check_range, check_shape, default_float
 from ._state import State
 
 
 def _spatial(shape, capacity=None) -> tuple:
     """(rows, cols) or (vertices,), checked."""
-    try:
-        out = tuple(int(s) for s in shape)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})") from err
+    if isinstance(shape, (str, bytes)) or not hasattr(shape, "__len__"):
+        raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})")
+    out = check_shape(shape, "shape")  # whole numbers: (16.5, 16) is refused, not floored
+    if capacity is not None:
+        check_shape(capacity, "capacity")
+    check_memory(cells_of(capacity if capacity is not None else out) * 4 * 4, "this initial state")
     if len(out) not in (1, 2):
         raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})")
     if min(out) < 1:

@@ -1,0 +1,390 @@
+"""Hostile files and inputs (issue 35): every size checked against the memory limit before it
+is spent, every loader's failure one ValueError naming the file, metadata checked against
+itself and its arrays, nothing read outside its place. Files are generated (hypothesis); each
+test checks the refusal, never the allocation, and compiles nothing."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import struct
+import zipfile
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import morphojax as mj
+from morphojax._checks import (STEP_COUNTER_MAX, check_memory, check_run_size, check_shape, check_step_counter,
+                               memory_limit, parse_memory)
+from morphojax._serialise import FORMAT_VERSION, load_npz, npz_members, save_npz
+
+FEW = settings(max_examples=25, deadline=None, derandomize=True,
+               suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+@pytest.fixture
+def small_limit(monkeypatch):
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "64M")
+    return 64 * 2**20
+
+
+def _npy_header(shape, descr="<f4") -> bytes:
+    out = io.BytesIO()
+    np.lib.format.write_array_header_1_0(out, {"descr": descr, "fortran_order": False, "shape": tuple(shape)})
+    return out.getvalue()
+
+
+def _result_file(path: Path, meta_changes=None, *, experiment=True) -> Path:
+    """A valid result of a quick preset (built, not run), with `meta_changes` applied to its JSON."""
+    state = mj.State.from_arrays([np.full((32, 32), 4.0), np.full((32, 32), 4.5)], names=("a", "b"))
+    meta = {}
+    if experiment:
+        exp = mj.preset("fig4-r4.2", quick=True)
+        meta = {"experiment": exp.to_dict(), "run": {"seed": 0, "phase": 0, "phase_step": 0, "phase_origin": None}}
+    path = save_npz(path, state, meta)
+    if meta_changes:
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        meta = json.loads(str(arrays["metadata"]))
+        for field, value in meta_changes.items():
+            target = meta["run"] if field.startswith("run.") else meta
+            target[field.removeprefix("run.")] = value
+        arrays["metadata"] = np.asarray(json.dumps(meta))
+        np.savez_compressed(path, **arrays)
+    return path
+
+
+# ---- 1. resources bounded before they are spent --------------------------------------------
+def test_memory_limit_from_the_environment(monkeypatch):
+    assert parse_memory("32G") == 32 * 2**30 and parse_memory("512M") == 512 * 2**20
+    assert parse_memory("1.5GB") == int(1.5 * 2**30) and parse_memory("4096") == 4096
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "2G")
+    assert memory_limit() == 2 * 2**30
+    with pytest.raises(ValueError, match=r"this run needs about 61 GB; the limit is 2.15 GB"):
+        check_memory(61e9, "this run")
+    for bad in ("lots", "-3G", "0", "nanG"):
+        monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", bad)
+        with pytest.raises(ValueError, match="MORPHOJAX_MAX_MEMORY must be a positive size"):
+            memory_limit()
+    monkeypatch.delenv("MORPHOJAX_MAX_MEMORY")
+    assert 0 < memory_limit() < 2**50  # half the machine's
+
+
+@FEW
+@given(shape=st.lists(st.integers(1, 10**9), min_size=1, max_size=3), species=st.integers(1, 8),
+       members=st.integers(1, 10**7), scale=st.integers(1, 10**6))
+def test_run_sizes_are_refused_by_their_estimate(shape, species, members, scale):
+    limit = memory_limit()
+    try:
+        check_run_size(shape, species, members=members, scale=scale)
+    except ValueError as err:
+        assert "needs about" in str(err) and "the limit is" in str(err)
+    else:  # what passes is within the limit by the same estimate, counted exactly
+        cells = int(np.prod(np.asarray(shape, dtype=object)))
+        assert cells * species * 16 * members <= limit
+
+
+@FEW
+@given(shape=st.lists(st.one_of(st.integers(-3, 0), st.floats(0.1, 1e6).filter(lambda x: not x.is_integer()),
+                                st.booleans(), st.complex_numbers(), st.text(max_size=2)), min_size=1, max_size=3))
+def test_bad_shapes_are_refused_not_floored(shape):
+    with pytest.raises(ValueError, match="shape"):
+        check_shape(shape, "shape")
+    with pytest.raises(ValueError, match="shape"):
+        mj.initial_state(mj.Turing(), jax.random.key(0), tuple(shape) if len(shape) > 1 else tuple(shape) * 2)
+
+
+def test_initial_state_and_complex_parameters():
+    with pytest.raises(ValueError, match=r"whole numbers, not 16.5"):
+        mj.paper_state(jax.random.key(0), (16.5, 16))
+    with pytest.raises(ValueError, match="needs about"):
+        mj.paper_state(jax.random.key(0), (10**6, 10**6))
+    with pytest.raises(ValueError, match="must be real, not complex"):
+        mj.Turing(ratio=4 + 1j)
+
+
+def test_step_counter_is_int32():
+    check_step_counter(0, STEP_COUNTER_MAX)
+    with pytest.raises(ValueError, match="int32"):
+        check_step_counter(10, STEP_COUNTER_MAX - 5)
+    with pytest.raises(ValueError, match="int32"):
+        check_step_counter(0, 2**31 + 5)
+
+
+@FEW
+@given(shape=st.lists(st.integers(10**4, 10**7), min_size=1, max_size=3),
+       descr=st.sampled_from(["<f4", "<f8", "<i4", "|u1", "<c16"]), compressed=st.booleans())
+def test_npz_member_headers_are_read_before_loading(tmp_path, shape, descr, compressed):
+    path = tmp_path / "claims.npz"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED if compressed else zipfile.ZIP_STORED) as zf:
+        zf.writestr("species_a.npy", _npy_header(shape, descr) + b"\0" * 64)
+        zf.writestr("metadata.npy", _npy_header((), "<U2") + b"{\0\0\0}\0\0\0")
+    with pytest.raises(ValueError, match=r"claims\.npz is not a morphojax result file \(member 'species_a' declares"):
+        load_npz(path)
+
+
+def test_npz_over_the_limit_and_bombs_are_refused(tmp_path, small_limit):
+    honest = tmp_path / "honest.npz"
+    np.savez(honest, cells=np.zeros(20 * 2**20, np.uint8))  # 20 MB: fine under 64 MB
+    assert npz_members(honest)["cells"][0] == (20 * 2**20,)
+    big = tmp_path / "big.npz"
+    np.savez(big, cells=np.zeros(80 * 2**20, np.uint8))  # 80 MB > 64 MB
+    with pytest.raises(ValueError, match=r"reading .*big\.npz needs about 83.9 MB; the limit is 67.1 MB"):
+        npz_members(big)
+
+
+def test_decompression_bomb_is_refused_from_its_declared_size(tmp_path, monkeypatch):
+    import morphojax._serialise as ser
+
+    monkeypatch.setattr(ser, "BOMB_SIZE", 1 << 20)  # the rule at a test's size: 1 MB, not 256 MB
+    path = tmp_path / "bomb.npz"
+    np.savez_compressed(path, cells=np.zeros(8 << 20, np.uint8))  # 8 MB of zeros in ~8 kB
+    with pytest.raises(ValueError, match=r"expands from .* more than 200 times"):
+        ser.npz_members(path)
+
+
+def test_cli_sizes_refused_before_anything_runs(capsys, small_limit):
+    from morphojax.cli import main
+
+    cases = [
+        (["run", "fig4-r4.2", "--scale", "100000"], r"run: error: this run .* needs about"),
+        (["run", "fig4-r4.2", "--scale", "0"], r"--scale must be a whole number >= 1"),
+        (["sweep", "--model", "turing", "--vary", "ratio=4:40:2", "--shape", "50000", "50000", "--out", "s.png"],
+         r"this sweep \(2 members of 50000x50000 cells\) needs about"),
+        (["sweep", "--model", "turing", "--vary", "ratio=4:40:1000000", "--out", "s.png"], "needs about"),
+        (["sweep", "--model", "turing", "--vary", "ratio=4:40:1000000000000", "--out", "s.png"],
+         r"at most 1000000 members"),
+        (["sweep", "--model", "turing", "--vary", "ratio=4:40:2", "--steps", str(2**31 + 5), "--out", "s.png"],
+         r"step counter"),
+    ]
+    for argv, match in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err
+        assert __import__("re").search(match, err), (argv, err)
+    with pytest.raises(SystemExit, match=r"this automaton \(3000\^3 cells"):
+        main(["ca", "--dim", "3", "--size", "3000"])
+
+
+# ---- 3. one kind of error from every loader -------------------------------------------------
+@FEW
+@given(data=st.data())
+def test_damaged_results_raise_one_value_error(tmp_path_factory, data):
+    good = _result_file(tmp_path_factory.mktemp("r") / "good.npz")
+    raw = bytearray(good.read_bytes())
+    how = data.draw(st.sampled_from(["truncate", "flip", "random", "empty", "append"]))
+    if how == "truncate":
+        raw = raw[:data.draw(st.integers(0, len(raw) - 1))]
+    elif how == "flip":
+        for at in data.draw(st.lists(st.integers(0, len(raw) - 1), min_size=1, max_size=8)):
+            raw[at] ^= 0xFF
+    elif how == "random":
+        raw = bytearray(data.draw(st.binary(min_size=1, max_size=4096)))
+    elif how == "empty":
+        raw = bytearray()
+    else:
+        raw += data.draw(st.binary(min_size=1, max_size=64))
+    bad = good.with_name("bad.npz")
+    bad.write_bytes(bytes(raw))
+    try:
+        state, meta = load_npz(bad)
+    except ValueError as err:
+        assert "bad.npz" in str(err)
+    else:  # a change the archive survives (an appended tail, a flipped unused byte) reads the same
+        assert state.names == ("a", "b")
+
+
+@pytest.mark.parametrize("loader", ["result", "sweep", "cells"])
+def test_loaders_refuse_devices_folders_and_missing_files(tmp_path, loader):
+    load = {"result": mj.load_npz, "sweep": mj.load_sweep, "cells": mj.load_cells}[loader]
+    for path, match in ((Path("/dev/zero"), "not a regular file"), (tmp_path, "a folder"),
+                        (tmp_path / "none.npz", "no such")):
+        with pytest.raises(ValueError, match=match):
+            load(path)
+    fifo = tmp_path / "pipe.npz"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="not a regular file"):  # never blocks
+        load(fifo)
+
+
+MESH_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+@FEW
+@given(fmt=st.sampled_from(["obj", "stl", "off", "ply"]), data=st.binary(max_size=2048),
+       keep=st.integers(0, len(MESH_OBJ)))
+def test_random_and_broken_mesh_files_raise_value_error(tmp_path_factory, fmt, data, keep):
+    folder = tmp_path_factory.mktemp("m")
+    for name, content in (("random", data), ("cut", MESH_OBJ.encode()[:keep]),
+                          ("latin", MESH_OBJ.replace("v 0 0 1", "# caf\xe9\nv 0 0 1").encode("latin-1"))):
+        path = folder / f"{name}.{fmt}"
+        path.write_bytes(content)
+        try:
+            mesh = mj.Mesh.from_file(path)
+        except ValueError as err:
+            assert str(path) in str(err) or path.name in str(err)
+        else:
+            assert mesh.n_vertices >= 3
+
+
+def test_meshes_keep_numbering_and_refuse_nan(tmp_path):
+    tet = tmp_path / "tet.obj"
+    tet.write_text(MESH_OBJ)
+    mesh = mj.Mesh.from_file(tet)
+    np.testing.assert_array_equal(mesh.vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    assert mesh.faces.shape == (4, 3)
+    (tmp_path / "latin.obj").write_bytes(("# made by Ren\xe9\n" + MESH_OBJ).encode("latin-1"))
+    assert mj.Mesh.from_file(tmp_path / "latin.obj").n_vertices == 4
+    (tmp_path / "nan.obj").write_text(MESH_OBJ.replace("v 0 0 1", "v nan 0 1"))
+    with pytest.raises(ValueError, match="nan.obj.*NaN"):
+        mj.Mesh.from_file(tmp_path / "nan.obj")
+    (tmp_path / "unused.obj").write_text("v 5 5 5\n" + MESH_OBJ.replace("f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4",
+                                                                          "f 2 4 3\nf 2 3 5\nf 2 5 4\nf 3 4 5"))
+    with pytest.raises(ValueError, match="unused.obj.*no face uses"):
+        mj.Mesh.from_file(tmp_path / "unused.obj")
+    (tmp_path / "far.obj").write_text(MESH_OBJ + "f 1 2 9\n")
+    with pytest.raises(ValueError, match=r"far.obj.*vertex index 9 is outside 1..4"):
+        mj.Mesh.from_file(tmp_path / "far.obj")
+    (tmp_path / "lie.off").write_text("OFF\n100000000 1 0\n0 0 0\n")
+    with pytest.raises(ValueError, match="declares 100000000 vertices"):
+        mj.Mesh.from_file(tmp_path / "lie.off")
+
+
+@FEW
+@given(data=st.binary(max_size=512), cut=st.integers(0, 400))
+def test_broken_images_raise_value_error(tmp_path_factory, data, cut):
+    from PIL import Image
+
+    fitting = pytest.importorskip("fitting")
+    folder = tmp_path_factory.mktemp("img")
+    good = folder / "good.png"
+    Image.fromarray((np.arange(64 * 64).reshape(64, 64) % 251).astype(np.uint8)).save(good)
+    for name, content in (("random.png", data), ("cut.png", good.read_bytes()[:cut])):
+        (folder / name).write_bytes(content)
+        try:
+            fitting.load_target(folder / name, cell_pixels=2.0)
+        except ValueError:
+            pass
+        try:
+            mj.Gradient.from_photo(folder / name)
+        except ValueError:
+            pass
+
+
+def test_sixteen_bit_pngs_are_read_at_their_depth(tmp_path):
+    from PIL import Image
+
+    fitting = pytest.importorskip("fitting")
+    stripes = np.where(np.arange(64) % 16 < 8, 1000, 1100).astype(np.uint16)  # both above 255
+    Image.fromarray(np.tile(stripes, (64, 1))).save(tmp_path / "deep.png")
+    target = fitting.load_target(tmp_path / "deep.png", cell_pixels=2.0)
+    assert target.pixels.min() == 0.0 and target.pixels.max() == 1.0  # contrast kept, not clipped to 255
+
+
+def test_cli_prints_one_line_and_debug_shows_the_traceback(tmp_path, capsys):
+    from morphojax.cli import main
+
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"PK\x03\x04 not really a zip")
+    for argv in (["render", str(bad), "--out", str(tmp_path / "x.png")], ["resume", str(bad)],
+                 ["render", "/dev/zero", "--out", str(tmp_path / "x.png")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err and "error:" in err
+    with pytest.raises(ValueError, match="bad.npz"):
+        main(["--debug", "render", str(bad), "--out", str(tmp_path / "x.png")])
+
+
+# ---- 2. metadata checked, not trusted -------------------------------------------------------
+def test_results_record_version_and_round_trip(tmp_path):
+    state, meta = load_npz(_result_file(tmp_path / "r.npz"))
+    assert meta["morphojax"] == mj.__version__ and meta["format_version"] == FORMAT_VERSION
+    assert state.shape == (32, 32) and state.names == ("a", "b")
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"run.phase": 99}, "'phase'"), ({"run.phase": -1}, "'phase'"), ({"run.phase_step": -5}, "'phase_step'"),
+    ({"run.phase_step": 10**6}, "'phase_step'"), ({"step": -1}, "'step'"), ({"step": 2**40}, "'step'"),
+    ({"capacity": [8, 8]}, "'capacity'"), ({"size": [16, 32]}, "'size'"), ({"species": "ab"}, "'species'"),
+    ({"species": [1, 2]}, "'species'"), ({"species": ["a", "a"]}, "'species'"), ({"run": None}, "'run'"),
+    ({"time": "nan"}, "'time'"), ({"run.seed": "zero"}, "'seed'"), ({"run.phase_origin": -3}, "'phase_origin'"),
+    ({"experiment": {"phases": []}}, "'experiment'"),
+])
+def test_tampered_result_fields_are_refused_by_name(tmp_path, change, field):
+    path = _result_file(tmp_path / "t.npz", change)
+    with pytest.raises(ValueError, match=rf"t\.npz .*{field}"):
+        load_npz(path)
+
+
+def test_resume_of_phase_99_is_refused(tmp_path, capsys):
+    from morphojax.cli import main
+
+    path = _result_file(tmp_path / "late.npz", {"run.phase": 99})
+    assert main(["resume", str(path)]) == 2
+    assert "'phase'" in capsys.readouterr().err
+
+
+def test_newer_files_warn_naming_both_versions(tmp_path):
+    path = _result_file(tmp_path / "new.npz", {"morphojax": "99.0.0"}, experiment=False)
+    with pytest.warns(UserWarning, match=rf"morphojax 99.0.0, newer than this morphojax {mj.__version__}"):
+        load_npz(path)
+    path = _result_file(tmp_path / "fmt.npz", {"format_version": FORMAT_VERSION + 1}, experiment=False)
+    with pytest.warns(UserWarning, match="file format 2"):
+        load_npz(path)
+
+
+def test_cells_files_are_checked(tmp_path):
+    from morphojax.cells._state import make_cells
+
+    cells = make_cells(["a"], np.random.default_rng(0).random((5, 2)), concentration=np.ones((1, 5)), capacity=8)
+    good = mj.save_cells(tmp_path / "c.npz", cells, {"seed": 1})
+    back, meta = mj.load_cells(good)
+    assert int(back.count) == 5 and meta["morphojax"] == mj.__version__ and meta["format_version"] == FORMAT_VERSION
+    with np.load(good) as data:
+        arrays = {k: data[k] for k in data.files}
+    for name, value, match in (("position", np.full((5, 2), np.nan), "NaN"),
+                               ("metadata", None, "'capacity'"), ("concentration", np.ones((1, 3)), "shape")):
+        tampered = dict(arrays)
+        if name == "metadata":
+            meta = json.loads(str(arrays["metadata"]))
+            meta["capacity"] = 2
+            tampered["metadata"] = np.asarray(json.dumps(meta))
+        else:
+            tampered[name] = value
+        np.savez_compressed(tmp_path / "bad.npz", **tampered)
+        with pytest.raises(ValueError, match=rf"bad\.npz .*{match}"):
+            mj.load_cells(tmp_path / "bad.npz")
+
+
+# ---- 5. a listing reads only its own files ---------------------------------------------------
+def test_listing_reads_only_its_own_folder(tmp_path):
+    (tmp_path / "L.txt").write_text("X\nXX\n")
+    inside = 'define chemical R\ncreate shape "L.txt"\n'
+    assert mj.load_listing(inside, folder=tmp_path).prepattern(jax.random.key(0)).count == 3
+    with pytest.raises(ValueError, match="has no folder"):
+        mj.load_listing(inside).prepattern(jax.random.key(0))
+    os.mkfifo(tmp_path / "pipe.txt")
+    (tmp_path / "zero.txt").symlink_to("/dev/zero")
+    (tmp_path / "big.txt").write_bytes(b"X" * (2 << 20))
+    for name, match in (("/etc/passwd", "outside the listing's folder"),
+                        ("../../../../etc/hostname", "outside the listing's folder"),
+                        ("pipe.txt", "not a regular file"), ("zero.txt", "outside the listing's folder"),
+                        ("big.txt", "at most 1048576")):
+        with pytest.raises(ValueError, match=match):
+            mj.load_listing(f'define chemical R\ncreate shape "{name}"\n', folder=tmp_path).prepattern(
+                jax.random.key(0))
+
+
+@pytest.mark.parametrize("line, match", [
+    ("stop at 100000000000000000000", "<= 2147483647"), ("define time_step 1e400", "finite number"),
+    ("create sqr_grid 100000 100000", "at most 10000000 cells"), ("create hex_circle 1e9", "at most 10000000"),
+    ("texture size 100000 100000", "at most 100000000 pixels"),
+])
+def test_listing_numbers_it_cannot_hold_are_refused_with_the_line(line, match):
+    with pytest.raises(ValueError, match=rf"<text>:2: .*{match}"):
+        mj.load_listing(f"define chemical R\n{line}\n")
