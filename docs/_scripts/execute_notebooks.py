@@ -38,20 +38,33 @@ def cite_sources(text: str) -> str:
     return re.sub(r"\b[Pp]aper (00[0-4])\b", link, text)
 
 
+NOTE_STARTS = ("*Rendered from a run", "*Shown without outputs*")
+
+
 def annotate(nb) -> None:
-    """Add the note on how the copy was run (once) and link the sources in markdown cells."""
+    """Put the note on how the copy was run under the title, and link the sources."""
     info = nb.metadata.get("morphojax_executed", {})
-    if not nb.metadata.get("morphojax_site_note"):
-        if info.get("seconds") is not None:
-            note = (f"*Rendered from a run at the small size* (`MORPHOJAX_NOTEBOOK_SIZE=small`, the test "
-                    f"suite's size: smaller lattices and fewer steps than at full size; {info['seconds']} s on "
-                    f"a 2-core CPU, morphojax {info.get('version', '0.1.0')}). Run it yourself with "
-                    f"`jupyter lab notebooks/` for the full size.")
-        else:
-            note = ("*Shown without outputs*: this notebook was not executed for the site. Run it with "
-                    "`jupyter lab notebooks/`.")
+    if info.get("seconds") is not None:
+        note = (f"*Rendered from a run at the small size* (`MORPHOJAX_NOTEBOOK_SIZE=small`, the test "
+                f"suite's size: smaller lattices and fewer steps than at full size; {info['seconds']} s on "
+                f"a 2-core CPU, morphojax {info.get('version', '0.1.0')}). Run it yourself with "
+                f"`jupyter lab notebooks/` for the full size.")
+    else:
+        note = ("*Shown without outputs*: this notebook was not executed for the site. Run it with "
+                "`jupyter lab notebooks/`.")
+    # drop a note an earlier pass wrote (as a cell of its own, or under the title)
+    nb.cells = [c for c in nb.cells if not (c.cell_type == "markdown" and c.source.startswith(NOTE_STARTS))]
+    for cell in nb.cells:
+        if cell.cell_type == "markdown":
+            cell.source = "\n".join(line for line in cell.source.split("\n") if not line.startswith(NOTE_STARTS))
+            cell.source = re.sub(r"\n{3,}", "\n\n", cell.source)
+    first = nb.cells[0] if nb.cells else None
+    if first is not None and first.cell_type == "markdown" and first.source.startswith("# "):
+        title, _, rest = first.source.partition("\n")
+        first.source = f"{title}\n\n{note}\n\n{rest.lstrip()}".rstrip() + "\n"
+    else:
         nb.cells.insert(0, nbformat.v4.new_markdown_cell(note))
-        nb.metadata["morphojax_site_note"] = True
+    nb.metadata.pop("morphojax_site_note", None)
     for cell in nb.cells:
         if cell.cell_type == "markdown":
             cell.source = cite_sources(cell.source)
