@@ -39,6 +39,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from ._descriptors import relative_change
 from ._lanes import NOT_LOCATED, lane_count, lanes_apply, run_group
 from ._simulate import run_status
+from .solvers import Euler
 from ._sweep_members import member_model
 
 # Lattice values per device in one chunk (the default `batch_size`): a bound on memory.
@@ -48,11 +49,11 @@ _TRACES = {"batch": 0}  # times the batched program was traced (tests guard agai
 
 
 # ---- the batched program ---------------------------------------------------------------------
-def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, boundary, stencil, bounds):
+def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, boundary, stencil, bounds, solver):
     """One member (traced; vmapped by `_batch_program`): build its model, run, measure the last steps."""
     m, g, dt = member_model(model, growth, dt, values)
     kw = dict(stencil=stencil, bounds=bounds, growth=g, sources=sources, key=key, check_dt=False,
-              origin=state.step)
+              origin=state.step, solver=solver)
     mid, bad, overflow = run_status(m, state, steps - tail, dt, boundary, **kw)
     if tail == 0:
         return mid, bad, overflow, jnp.asarray(jnp.nan, mid.fields.dtype)
@@ -62,7 +63,7 @@ def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, 
 
 
 def _batch_program(model, growth, sources, state, keys, values, dt, *, state_axis, steps, tail, boundary, stencil,
-                   bounds, inner, lanes, out_sharding):
+                   bounds, inner, lanes, out_sharding, solver=None):
     """A chunk of members: (fields, size, bad step, overflow, change), each with a leading
     member axis. With `lanes`, groups of `inner` members in lanes (`_lanes.run_group`), one
     group after another; else vmapped `inner` at a time (`lax.map` runs the sub-batches in
@@ -70,7 +71,7 @@ def _batch_program(model, growth, sources, state, keys, values, dt, *, state_axi
     _TRACES["batch"] += 1  # runs at trace time only
     size = len(next(iter(values.values())))
     kw = dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds)
-    if lanes:
+    if lanes:  # lanes step with forward Euler only (`run_batched` chooses them for Euler alone)
         first = (lambda a: a) if state_axis is None else (lambda a: a[0])  # every start has one size and step
 
         def group(x):
@@ -83,7 +84,7 @@ def _batch_program(model, growth, sources, state, keys, values, dt, *, state_axi
         out = tuple(a.reshape((size,) + a.shape[2:]) for a in out)
     else:
         def one(state, key, values):
-            final, bad, over, change = _member_run(model, growth, sources, state, key, values, dt, **kw)
+            final, bad, over, change = _member_run(model, growth, sources, state, key, values, dt, solver=solver, **kw)
             return final.fields, final.size, bad, over, change
 
         if inner >= size:
@@ -181,7 +182,7 @@ class BatchRun:
 
 
 def run_batched(model, growth, sources, starts, member_keys, values, dt, *, steps, tail, boundary, stencil, bounds,
-                batch_size, devices, vmap_size, progress) -> BatchRun:
+                batch_size, devices, vmap_size, progress, solver=None) -> BatchRun:
     """Run every member of `values` ({name: (n,) array}) in chunks over `devices` (and hosts).
 
     `starts` gives the members' initial states (`chunk(idx, member_keys)`, `shared`, `state`,
@@ -194,14 +195,16 @@ def run_batched(model, growth, sources, starts, member_keys, values, dt, *, step
     hosts = devices is None and jax.process_count() > 1  # split the members between processes
     lo, hi, per_host = _host_block(n, jax.process_index(), jax.process_count()) if hosts else (0, n, n)
     chunk = _chunk_size(batch_size, max(per_host, 1), int(np.prod(probe.fields.shape)), devs)
-    group = lane_count(probe.fields.dtype) if lanes_apply(model, growth, sources, probe) else 0
+    euler = solver is None or isinstance(solver, Euler)
+    group = lane_count(probe.fields.dtype) if euler and lanes_apply(model, growth, sources, probe) else 0
     inner, lanes = _layout(vmap_size, devs, chunk, group)
     if lanes:  # whole groups (padded like the last chunk)
         chunk = -(-chunk // inner) * inner
     t0 = time.perf_counter()
     host, sharding = _run_chunks(
         model, growth, sources, starts, member_keys, values, jnp.asarray(dt, probe.fields.dtype), devs, chunk, lo, hi,
-        dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds, inner=inner, lanes=lanes),
+        dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds, inner=inner, lanes=lanes,
+             solver=solver),
         progress)
     if hosts:
         host = _gather_hosts(host, n, per_host)

@@ -28,6 +28,7 @@ from . import _serialise
 from ._serialise import dumps, key_from_data, key_to_data, load_npz, save_npz
 from .models import AbstractModel
 from ._simulate import simulate
+from .solvers import as_solver
 from ._state import State
 from ._version import __version__
 
@@ -91,6 +92,8 @@ class Phase:
         ones, or a tuple of the phase steps after which to take them.
     capacity: reallocate the state to this (rows, cols) capacity before the phase, so a
         static phase runs on its own small lattice and only growing phases carry room.
+    solver: how the phase steps (`mj.Euler()` by default; `mj.ETDRK(...)` or `mj.IMEX(...)`
+        for a phase without growth or sources on the square lattice, see `simulate`).
     """
 
     model: AbstractModel
@@ -107,6 +110,7 @@ class Phase:
     name: str = ""
     capacity: tuple | None = None
     domain: Any = None
+    solver: Any = None
 
     def __post_init__(self):
         from ._growth import Growth, Source
@@ -123,6 +127,7 @@ class Phase:
                 raise ValueError(f"Phase.sources must be Source(...) objects (got {src!r})")
         object.__setattr__(self, "sources", sources)  # a single Source is accepted as (Source,)
         object.__setattr__(self, "domain", _phase_domain(self.domain, self.stencil, self.boundary))
+        object.__setattr__(self, "solver", as_solver(self.solver))
         if isinstance(self.domain, Lattice):  # the shorthands stay readable as the lattice's
             object.__setattr__(self, "stencil", self.domain.stencil)
             object.__setattr__(self, "boundary", self.domain.boundary)
@@ -199,7 +204,8 @@ class Experiment:
 # experiment can be passed through jax.jit and vmapped over), the rest is static data.
 jax.tree_util.register_dataclass(
     Phase, data_fields=["model", "growth", "sources", "domain"],
-    meta_fields=["steps", "dt", "boundary", "stencil", "bounds", "add_species", "keep", "frames", "name", "capacity"])
+    meta_fields=["steps", "dt", "boundary", "stencil", "bounds", "add_species", "keep", "frames", "name", "capacity",
+                 "solver"])
 jax.tree_util.register_dataclass(
     Experiment, data_fields=["phases"], meta_fields=["name", "initial", "description", "figure", "show", "cmap"])
 
@@ -299,7 +305,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
         if phase_step == 0:
             state = phase.prepare(state)
             origin = int(state.step) if is_concrete(state.step) else state.step
-        kwargs = dict(domain=phase.domain, bounds=phase.bounds, growth=phase.growth,
+        kwargs = dict(domain=phase.domain, bounds=phase.bounds, growth=phase.growth, solver=phase.solver,
                       sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin, throw=throw,
                       progress=(phase.name or f"phase {i + 1}") if progress else False)
         marks = set(_frame_steps(phase)) if frames and phase.frames else set()

@@ -36,6 +36,7 @@ from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo
                      Modulated, Modulation, Morphogen, Reaction, Reinforcement, RuleReinforcement, Schnakenberg,
                      ThesisReinforcement, Turing)
 from ._state import State
+from .solvers import solver_from_dict, solver_to_dict
 from ._version import __version__
 
 # the models a file can rebuild (a Reaction's file cannot: its function is code)
@@ -192,6 +193,7 @@ def phase_to_dict(phase) -> dict:
         "add_species": [list(p) for p in phase.add_species],
         "keep": list(phase.keep) if phase.keep is not None else None, "frames": phase.frames,
         "capacity": list(phase.capacity) if phase.capacity is not None else None,
+        "solver": solver_to_dict(phase.solver),
     })
 
 
@@ -210,6 +212,7 @@ def phase_from_dict(d: dict):
         keep=tuple(d["keep"]) if d.get("keep") is not None else None,
         frames=tuple(d["frames"]) if isinstance(d.get("frames"), list) else int(d.get("frames", 0)),
         name=d.get("name", ""), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+        solver=solver_from_dict(d.get("solver")),
     )
 
 
@@ -333,11 +336,20 @@ def write_atomically(path, write) -> Path:
     fills a temporary beside `path` (same suffix), which is flushed to disk and then replaces
     `path` in one step; a temporary whose writing failed is removed."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    check_output_path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ValueError(f"cannot write {path}: {err.strerror or err}") from None
+    remove_stale_temporaries(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.{os.getpid()}-", suffix=path.suffix, dir=path.parent)
+    except OSError as err:
+        raise ValueError(f"cannot write {path}: {err.strerror or err}") from None
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # the user's umask, like any file (mkstemp makes 0600)
         fd = os.open(tmp, os.O_RDONLY)
         try:
             os.fsync(fd)
@@ -445,6 +457,77 @@ def _why(err) -> str:
         return f"no {err.args[0]!r} entry" if err.args else "a missing entry"
     text = str(err).strip()
     return f"{type(err).__name__}: {text}" if text and not isinstance(err, ValueError) else (text or type(err).__name__)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+STALE_SECONDS = 60  # a temporary without its writer's process id is stale after this long
+
+
+def remove_stale_temporaries(path) -> list[Path]:
+    """Remove the temporaries (`.NAME.PID-*SUFFIX`) that a killed write of `path` left beside
+    it: those whose writing process is gone (older ones, without a process id, once older than
+    STALE_SECONDS), so a write running in another live process keeps its own."""
+    import time
+
+    path = Path(path)
+    removed = []
+    try:
+        candidates = list(path.parent.glob(f".{glob_escape(path.stem)}.*{glob_escape(path.suffix)}"))
+    except OSError:
+        return removed
+    for tmp in candidates:
+        try:
+            info = tmp.lstat()
+            if not stat.S_ISREG(info.st_mode) or info.st_uid != os.getuid():
+                continue
+            pid = tmp.name[len(path.stem) + 2:].split("-", 1)[0]
+            if pid.isdigit() and int(pid) > 0:
+                if int(pid) == os.getpid() or _alive(int(pid)):
+                    continue
+            elif time.time() - info.st_mtime <= STALE_SECONDS:
+                continue
+            tmp.unlink()
+            removed.append(tmp)
+        except OSError:
+            continue
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def glob_escape(text: str) -> str:
+    import glob
+
+    return glob.escape(text)
+
+
+def check_output_path(path) -> Path:
+    """Refuse, before any work, an output path whose parent is a file, that is a folder, or
+    whose folder cannot be written (ValueError naming the path)."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"output {path} is a folder; name a file inside it")
+    for parent in (path.parent, *path.parent.parents):
+        if parent.exists():
+            if not parent.is_dir():
+                raise ValueError(f"cannot write {path}: {parent} is a file, not a folder")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise ValueError(f"cannot write {path}: the folder {parent} is not writable")
+            break
+    return path
 
 
 def read_npz(path, what: str, parse):

@@ -40,6 +40,7 @@ from .domains import Lattice
 from ._growth import Growth
 from ._initial import initial_state
 from .models import AbstractModel
+from .solvers import Euler, as_solver
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict, to_jsonable
 from ._state import State
 from ._sweep_members import DT, GROWTH_RATE, label, member_model, sweep_members, with_growth_rate
@@ -51,7 +52,7 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
           capacity=None, keys: str = "per-member", stencil: str = "nine-point", bounds="clip",
           growth: Growth | None = None, sources=(), species=-1, settle_steps: int | None = None,
           settle_tol: float = SETTLE_TOL, describe_members: bool = True, check_dt: bool = True,
-          progress: bool = False) -> SweepResult:
+          progress: bool = False, solver=None) -> SweepResult:
     """Run `model` for every parameter set of `vary`, batched with `jax.vmap`; return a `SweepResult`.
 
     Args:
@@ -64,8 +65,10 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         state: one initial State shared by every member (identical initial conditions), or a
             State batched over the members (leading axis n), or None to give each member its
             own random start `initial_state(model, ..., shape, capacity)` (needs `key`, `shape`).
-        steps, dt, boundary, stencil, bounds, growth, sources: as in `simulate`; `dt` is
-            checked against the explicit-Euler limit for every member unless `check_dt=False`.
+        steps, dt, boundary, stencil, bounds, growth, sources, solver: as in `simulate`;
+            `dt` is checked against the solver's criterion (for Euler the explicit limit) for
+            every member unless `check_dt=False`. A solver other than Euler runs the members
+            vmapped, not in lanes.
         batch_size: members per compiled chunk (None: about 512K lattice values per device on
             CPU, e.g. 16 members of 2 x 128 x 128, and at most an equal share per core; 32M
             values per device on GPU/TPU).
@@ -121,7 +124,9 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
     if growth is not None and not probe.growable:
         raise ValueError("sweep: growth needs a state with room to grow: State.from_arrays(..., capacity=(rows, cols)) "
                          "or shape=..., capacity=... for per-member starts")
-    _validate_members(model, growth, dt, values, names, probe, steps, lattice, check_dt)
+    solver = as_solver(solver)
+    solver.check(lattice, model, dynamic=growth is not None or probe.growable, sources=tuple(sources or ()))
+    _validate_members(model, growth, dt, values, names, probe, steps, lattice, check_dt and isinstance(solver, Euler))
     spec = species_index(probe.names, species)
 
     member_keys = None
@@ -130,11 +135,11 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
             else jax.vmap(lambda i: key)(jnp.arange(n))
     run = run_batched(model, growth, sources, starts, member_keys, values, dt, steps=steps, tail=tail,
                       boundary=boundary, stencil=stencil, bounds=bounds, batch_size=batch_size, devices=devices,
-                      vmap_size=vmap_size, progress=progress)
+                      vmap_size=vmap_size, progress=progress, solver=solver)
 
     config = {
         "model": model_to_dict(model), "steps": steps, "dt": to_jsonable(dt), "boundary": boundary,
-        "stencil": stencil, "bounds": bounds_to_data(bounds),
+        "stencil": stencil, "bounds": bounds_to_data(bounds), "solver": solver.to_dict(),
         "growth": growth_to_dict(growth) if growth is not None else None,
         "sources": [source_to_dict(s) for s in sources], "settle_steps": tail, "settle_tol": settle_tol,
         "keys": keys, "seed": seed, "key_data": key_to_data(key), "shape": list(probe.shape),

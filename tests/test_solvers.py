@@ -194,3 +194,17 @@ def test_the_diffusion_limit_is_eulers_only():
         mj.simulate(model, state, 2, 0.05)
     out = mj.simulate(model, state, 2, 0.05, solver=mj.ETDRK(1))
     assert np.isfinite(np.asarray(out.fields)).all()
+
+
+def test_sweep_and_phase_take_a_solver():
+    """A sweep member stepped with ETDRK equals the same run alone (vmapped, not in lanes),
+    and a phase records its solver in its file form."""
+    state = mj.paper_state(jax.random.key(0), (12, 14))
+    model = mj.Turing(40.0, 3.0)  # beyond Euler's limit at dt = 0.1
+    result = mj.sweep(model, {"ratio": [20.0, 40.0]}, state, steps=30, dt=0.1, solver=mj.ETDRK(2))
+    alone = mj.simulate(model.replace(ratio=40.0), state, 30, 0.1, solver=mj.ETDRK(2))
+    np.testing.assert_array_equal(np.asarray(result.fields[1]), np.asarray(alone.fields))
+    assert result.config["solver"] == {"solver": "ETDRK", "order": 2}
+    phase = mj.Phase(model, steps=30, dt=0.1, solver=mj.IMEX(1))
+    assert mj.Phase.from_dict(phase.to_dict()) == phase
+    assert mj.Phase(model, steps=3, dt=0.001).to_dict()["solver"] == {"solver": "Euler", "order": 1}

@@ -20,12 +20,8 @@ import equinox as eqx
 
 
 class AbstractSolver(eqx.Module):
-    """Base of the time-stepping policies."""
-
-    @property
-    @abc.abstractmethod
-    def order(self) -> int:
-        """The order of accuracy in dt with the limits not binding."""
+    """Base of the time-stepping policies. Each has an `order`: its order of accuracy in dt
+    with the limits not binding."""
 
     @property
     def name(self) -> str:

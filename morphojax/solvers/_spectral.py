@@ -108,30 +108,26 @@ class ETDRK(_TransformSolver):
     rate per species, isotropic, without growth or sources (use `Euler` there).
     """
 
-    _order: int = eqx.field(static=True)
+    order: int = eqx.field(static=True)
 
     def __init__(self, order: int = 2):
         if order not in (1, 2, 4):
             raise ValueError(f"ETDRK.order must be 1, 2 or 4 (got {order!r})")
-        self._order = int(order)
-
-    @property
-    def order(self) -> int:
-        return self._order
+        self.order = int(order)
 
     def coefficients(self, z, dt):
-        if self._order == 1:
+        if self.order == 1:
             return {"p1": dt * phi(z, 1)}
-        if self._order == 2:
+        if self.order == 2:
             return {"p1": dt * phi(z, 1), "p2": dt * phi(z, 2)}
         p1, p2, p3 = phi(z, 1), phi(z, 2), phi(z, 3)
         return {"E": jnp.exp(z), "E2": jnp.exp(z / 2), "Q": dt / 2 * phi(z / 2, 1),
                 "f1": dt * (p1 - 3 * p2 + 4 * p3), "f2": dt * (p2 - 2 * p3), "f3": dt * (4 * p3 - p2)}
 
     def advance(self, co, x, reaction, euler_rate, fwd, inv):
-        if self._order == 1:
+        if self.order == 1:
             return x + inv(co["p1"] * fwd(euler_rate(x)))
-        if self._order == 2:
+        if self.order == 2:
             nx = reaction(x)
             a = x + inv(co["p1"] * fwd(euler_rate(x)))
             return a + inv(co["p2"] * fwd(reaction(a) - nx))
@@ -163,24 +159,20 @@ class IMEX(_TransformSolver):
     operators are not implemented).
     """
 
-    _order: int = eqx.field(static=True)
+    order: int = eqx.field(static=True)
 
     def __init__(self, order: int = 2):
         if order not in (1, 2):
             raise ValueError(f"IMEX.order must be 1 or 2 (got {order!r})")
-        self._order = int(order)
-
-    @property
-    def order(self) -> int:
-        return self._order
+        self.order = int(order)
 
     def coefficients(self, z, dt):
-        if self._order == 1:
+        if self.order == 1:
             return {"h": dt / (1.0 - z)}
         return {"z": z, "solve": 1.0 / (1.0 - _ARS_GAMMA * z), "dt": dt}
 
     def advance(self, co, x, reaction, euler_rate, fwd, inv):
-        if self._order == 1:
+        if self.order == 1:
             return x + inv(co["h"] * fwd(euler_rate(x)))
         g, d, h = _ARS_GAMMA, _ARS_DELTA, co["dt"]
         v = fwd(x)
