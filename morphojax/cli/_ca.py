@@ -10,7 +10,7 @@ import morphojax as mj
 from morphojax._checks import STEP_COUNTER_MAX, check_range, check_run_size  # the library's checks, for the flags
 from morphojax.presets import run_automaton, run_life_like
 
-from ._output import picture_path, report
+from ._output import out_arg, picture_path, report
 
 DEFAULT_SPECIES = (3.2, 6.0, 1.0, -0.2)  # paper 002's two-species example (section 4.2)
 
@@ -46,7 +46,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--threshold", type=float, default=0.01, help="convergence threshold (fraction, default 0.01)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--frames", action="store_true", help="also write intermediate snapshots (Young automata)")
-    p.add_argument("--out", type=Path, default=Path("out") / "ca.png", help="output PNG (default out/ca.png)")
+    p.add_argument("--out", type=out_arg, default=Path("out") / "ca.png", help="output PNG (default out/ca.png)")
     p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (--quiet has none either)")
     p.set_defaults(func=run_ca_command)
@@ -70,7 +70,7 @@ def _run_ca(args) -> int:
                    what=f"this automaton ({args.size}^{args.dim} cells, {species} states)")
     if args.p is not None:
         check_range(args.p, "--p (probability)", low=0.0, high=1.0)
-    out = picture_path(args.out)
+    out = picture_path(args.out, "ca")
     shape = (int(args.size),) * int(args.dim)
     run = dict(p=args.p, steps=args.steps, stop=args.stop_at_convergence, seed=args.seed, out=out,
                threshold=args.threshold, progress=False if args.no_progress or args.quiet else "ca")

@@ -21,7 +21,7 @@ from pathlib import Path
 from morphojax.cells import LISTINGS, load_listing
 from morphojax.presets._cells import write_outputs
 
-from ._output import picture_path, report
+from ._output import out_arg, picture_path, report
 
 QUICK_STEPS = 100  # --quick: at most this many iterations
 
@@ -31,7 +31,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("listing", help="run a thesis experiment file on the cell simulator",
                               description=__doc__)
     p.add_argument("file", nargs="?", help="a listing file, or a shipped listing's name (A.1 ... A.18)")
-    p.add_argument("--out", type=Path, default=None, help="picture (default out/NAME.png); .npz and .svg beside it")
+    p.add_argument("--out", type=out_arg, default=None, help="picture (default out/NAME.png); .npz and .svg beside it")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the listing's `use seed`, else 0)")
     p.add_argument("--steps", type=int, default=None, help="iterations (default: the listing's `stop at`)")
     p.add_argument("--quick", action="store_true", help=f"at most {QUICK_STEPS} iterations (a check, in seconds)")
@@ -57,7 +57,7 @@ def run(args) -> int:
     if args.quick:
         steps = min(steps, QUICK_STEPS)
     seed = args.seed if args.seed is not None else (listing.seed or 0)
-    out = picture_path(args.out if args.out is not None else Path("out") / f"{listing.name}.png")
+    out = picture_path(args.out if args.out is not None else Path("out") / f"{listing.name}.png", listing.name)
     t0 = time.perf_counter()
     cells = listing.run(seed=seed, steps=steps, progress=not args.no_progress)
     seconds = time.perf_counter() - t0

@@ -18,7 +18,8 @@ import jax
 import numpy as np
 
 import morphojax as mj
-from morphojax._serialise import save_npz
+from morphojax._checks import STEP_COUNTER_MAX
+from morphojax._serialise import check_output_path, save_npz
 
 from ._output import report
 
@@ -87,8 +88,9 @@ def run(args) -> int:
             params[name.strip()] = float(text)
         except ValueError:
             raise ValueError(f"--set {name}: {text!r} is not a number") from None
-    if args.steps < 0:
-        raise ValueError(f"--steps must be >= 0 (got {args.steps})")
+    if not 0 <= args.steps <= STEP_COUNTER_MAX:
+        raise ValueError(f"--steps must lie in [0, {STEP_COUNTER_MAX}] (got {args.steps})")
+    check_output_path(out)  # before the run, not after it
     model = mj.model_from_name(args.model, **params)
     mesh = load_mesh(args.file, args.scale)
     limit = mesh.max_stable_dt(float(model.max_diffusion()))

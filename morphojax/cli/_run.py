@@ -33,7 +33,7 @@ from morphojax.presets._automaton_outputs import default_scale, lattice_picture
 
 from morphojax._checks import check_picture, check_run_size, check_scale  # sizes checked before a run
 
-from ._output import picture_path, report
+from ._output import out_arg, picture_path, report
 
 GIF_FRAMES = 24  # snapshots a run takes for `--gif` (spread over its phases)
 TABLE_WIDTH = 100  # `morphojax presets` fits a terminal this wide (or the terminal, if narrower)
@@ -47,8 +47,9 @@ def register(sub) -> None:
 
     p = sub.add_parser("run", help="run a preset and write its image and .npz")
     p.add_argument("name", help="preset name (see `morphojax presets`)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="output PNG (default out/NAME.png); the .npz goes next to it")
+    p.add_argument("--out", type=out_arg, default=None,
+                   help="output PNG (default out/NAME.png; a folder ending in /: NAME.png inside it); the .npz "
+                        "goes next to it")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same result)")
     p.add_argument("--quick", action="store_true", help="a reduced version that runs in seconds")
     p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
@@ -63,7 +64,7 @@ def register(sub) -> None:
 
     p = sub.add_parser("resume", help="continue a run from its .npz checkpoint")
     p.add_argument("checkpoint", type=Path)
-    p.add_argument("--out", type=Path, default=None, help="output PNG (default: the checkpoint's name)")
+    p.add_argument("--out", type=out_arg, default=None, help="output PNG (default: the checkpoint's name)")
     p.add_argument("--frames", action="store_true")
     p.add_argument("--scale", type=int, default=2)
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
@@ -80,7 +81,7 @@ def register(sub) -> None:
                    help="colour with a photo's main colours instead (mj.Gradient.from_photo: dark = high)")
     p.add_argument("--palette-crop", default=None, metavar="X0,Y0,X1,Y1", help="the photo's region for --palette-from")
     p.add_argument("--scale", type=int, default=None, help="pixels per cell (default 2; automata as `ca` draws them)")
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=out_arg, required=True)
     p.set_defaults(func=_cmd_render)
 
 
@@ -123,7 +124,7 @@ def _cmd_run(args):
     if item.kind == "reaction-diffusion":  # sizes checked before anything runs
         for exp in [mj.PRESETS[m].experiment(args.quick) for m in item.members] or [item.experiment(args.quick)]:
             check_experiment_size(exp, args.scale, args.frames or args.gif is not None)
-    out = picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png")
+    out = picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png", args.name)
     return RUNNERS[item.kind](item, args, out)
 
 
@@ -279,7 +280,7 @@ def _cmd_resume(args):
     run = meta.get("run", {})
     if int(run.get("phase", 0)) >= len(exp.phases):
         print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
-    out = picture_path(args.out if args.out is not None else args.checkpoint)
+    out = picture_path(args.out if args.out is not None else args.checkpoint, args.checkpoint.stem)
     args.seed = int(run["seed"]) if run.get("seed") is not None else 0  # a key-started run resumes with its key
     result = _run_one(exp, args, out.with_suffix(".npz"), resume=(state, meta))
     _write_outputs(result, out, args)
@@ -289,7 +290,7 @@ def _cmd_resume(args):
 def _cmd_render(args):
     if args.scale is not None:
         check_scale(args.scale, "--scale")
-    out = picture_path(args.out)
+    out = picture_path(args.out, args.result.stem)
     kind = file_kind(args.result)
     if args.palette_from is not None:
         if args.cmap is not None:

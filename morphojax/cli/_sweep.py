@@ -24,7 +24,7 @@ import numpy as np
 import morphojax as mj
 from morphojax._checks import STEP_COUNTER_MAX, check_run_size, check_scale, check_shape  # sizes before a run
 
-from ._output import report
+from ._output import out_arg, picture_path, report
 
 _RANGE = re.compile(r"^\s*([^:]+):([^:]+):([^:]+)\s*$")
 DEFAULT_TIME = 100.0  # the leopard paper's Fig. 4 runs to t = 100
@@ -63,7 +63,7 @@ def register(subparsers) -> None:
     p.add_argument("--scale", type=int, default=None, help="pixels per cell in the montage (default: automatic)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--quiet", action="store_true", help="print only the JSON line")
-    p.add_argument("--out", type=Path, required=True, help="the montage PNG; .csv, .json and .npz go next to it")
+    p.add_argument("--out", type=out_arg, required=True, help="the montage PNG; .csv, .json and .npz go next to it")
     p.set_defaults(func=run_sweep_command)
 
 
@@ -198,6 +198,7 @@ def _combos(vary):
 
 def run_sweep_command(args) -> int:
     model, vary, kwargs = build_sweep(args)
+    args.out = picture_path(args.out, "sweep")  # a path that cannot be written is refused before the run
     result = mj.sweep(model, vary, **kwargs)
     written = result.save(args.out, species=kwargs["species"], cmap=args.cmap, scale=args.scale)
     patterns = Counter(row.get("pattern", "") for row in result.table)
