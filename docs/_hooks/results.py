@@ -45,8 +45,31 @@ def cite_sources(text: str, bibliography: str) -> str:
     return re.sub(r"\b[Pp]aper (00[0-4])\b", link, text)
 
 
+def unserved_links_as_text(markdown: str, src_uri: str) -> str:
+    """A result table's link to a file the site does not serve (a script, a log) becomes text.
+
+    The scripts write their tables for the repository, where `../bench_core.py` resolves; on the
+    site only the files this hook serves exist, so such a link is shown as `text (path)`
+    instead of failing the strict build.
+    """
+    here = (ROOT / src_uri).parent
+
+    def keep_or_flatten(match):
+        bang, text, target = match.group(1), match.group(2), match.group(3)
+        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+            return match.group(0)
+        path = (here / target.split("#")[0]).resolve()
+        served = path.is_file() and path.suffix in SERVED and RESULTS in path.parents
+        if served:
+            return match.group(0)
+        return f"{text} (`{target}`)" if not bang else f"`{target}`"
+
+    return re.sub(r"(!?)\[([^\]]*)\]\(([^)\s]+)\)", keep_or_flatten, markdown)
+
+
 def on_page_markdown(markdown, page, config, files):
     if not page.file.src_uri.startswith("benchmarks/results/"):
         return markdown
     depth = page.file.src_uri.count("/")
+    markdown = unserved_links_as_text(markdown, page.file.src_uri)
     return cite_sources(markdown, "../" * depth + "bibliography.md")
