@@ -454,7 +454,10 @@ def read_metadata(data, path=None) -> dict:
 def _why(err) -> str:
     """What went wrong, in words: the exception's message, or its kind when it has none."""
     if isinstance(err, KeyError):
-        return f"no {err.args[0]!r} entry" if err.args else "a missing entry"
+        key = str(err.args[0]) if err.args else ""
+        if key.endswith(" is not a file in the archive"):  # NumPy's words for a missing member
+            return f"no member {key.split(' ')[0]!r}"
+        return f"no {key!r} entry" if key else "a missing entry"
     text = str(err).strip()
     return f"{type(err).__name__}: {text}" if text and not isinstance(err, ValueError) else (text or type(err).__name__)
 

@@ -23,8 +23,8 @@ from ._descriptors import describe
 from ._initial import initial_state
 from .models import AbstractModel
 from ._render import png_path, tile_montage
-from ._serialise import (bounds_from_data, dumps, growth_from_dict, key_from_data, model_from_dict, read_npz,
-                         source_from_dict, write_npz)
+from ._serialise import (bounds_from_data, check_output_path, dumps, growth_from_dict, key_from_data, model_from_dict,
+                         read_npz, source_from_dict, stamp, write_npz)
 from ._state import State
 from ._sweep_members import DT, label, member_model
 
@@ -193,12 +193,13 @@ class SweepResult:
     def save(self, path, species=-1, cmap="inferno", scale=None) -> dict:
         """Write the montage (`path`, PNG), the table (.csv, .json) and the states (.npz) next to it."""
         path = png_path(path)
+        check_output_path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         self.montage(species=species, cmap=cmap, scale=scale).save(path, format="PNG")
         written = {"png": path, "csv": path.with_suffix(".csv"), "json": path.with_suffix(".json"),
                    "npz": path.with_suffix(".npz")}
         self.save_table(written["csv"])
-        written["json"].write_text(dumps(self._metadata() | {"table": self.table}, indent=1))
+        written["json"].write_text(dumps(stamp(self._metadata() | {"table": self.table}), indent=1))
         self.save_npz(written["npz"])
         return written
 
@@ -292,13 +293,52 @@ def load_sweep(path) -> SweepResult:
     def parse(meta, data):
         if meta.get("kind") != "morphojax.sweep":
             raise ValueError("not a sweep file")
-        species, names = tuple(meta["species"]), tuple(meta["names"])
+        species, names = meta.get("species"), meta.get("names")
+        for field, value in (("species", species), ("names", names)):
+            if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"metadata field {field!r} must list names (got {value!r})")
+        species, names = tuple(species), tuple(names)
         return (species, names, np.stack([data[f"species_{n}"] for n in species], axis=-3),
                 {n: np.asarray(data[f"value_{n}"], float).reshape(-1) for n in names},
                 {k: np.asarray(data[k]) for k in ("size", "blowup_step", "overflow", "change")})
 
     meta, (species, names, stacked, values, extra) = read_npz(path, "sweep", parse)
-    n = len(next(iter(values.values())))
+    try:
+        return _sweep_from(meta, species, names, stacked, values, extra)
+    except (KeyError, TypeError, IndexError, ValueError, AttributeError, OverflowError) as err:
+        why = f"no {err.args[0]!r} entry" if isinstance(err, KeyError) else str(err)
+        raise ValueError(f"{path} is not a valid morphojax sweep file ({why})") from None
+
+
+def check_sweep(meta, species, names, stacked, values, extra) -> int:
+    """The one validator of a sweep file: its metadata against itself and its arrays; returns
+    the number of members. Raises ValueError naming the field."""
+    if not species or not all(isinstance(n, str) for n in species):
+        raise ValueError(f"metadata field 'species' must list species names (got {list(species)!r})")
+    if not names or not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
+        raise ValueError(f"metadata field 'names' must list distinct parameter names (got {list(names)!r})")
+    n = len(values[names[0]])
+    if n < 1 or any(len(v) != n for v in values.values()):
+        raise ValueError(f"the value arrays of {list(names)} must hold one value per member, all the same number")
+    if stacked.ndim < 3 or stacked.dtype.kind not in "fiu" or stacked.size != n * math.prod(stacked.shape[-3:]):
+        raise ValueError(f"the species arrays (shape {stacked.shape}) do not hold {n} members")
+    for key, per in (("size", 2), ("blowup_step", 1), ("overflow", 1), ("change", 1)):
+        if extra[key].size != n * per:
+            raise ValueError(f"array {key!r} holds {extra[key].size} values for {n} members")
+    if not isinstance(meta.get("table"), list) or len(meta["table"]) != n:
+        raise ValueError(f"metadata field 'table' must have one row per member ({n})")
+    if not isinstance(meta.get("config"), dict) or not isinstance(meta["config"].get("model"), dict):
+        raise ValueError("metadata field 'config' must hold the sweep's model")
+    axes = meta.get("axes")
+    if axes is not None:
+        if not isinstance(axes, dict) or set(axes) != set(names) or \
+                math.prod(len(np.atleast_1d(axes[k])) for k in names) != n:
+            raise ValueError(f"metadata field 'axes' must give each of {list(names)} its values, {n} members in all")
+    return n
+
+
+def _sweep_from(meta, species, names, stacked, values, extra) -> SweepResult:
+    n = check_sweep(meta, species, names, stacked, values, extra)
     axes = None if meta["axes"] is None else tuple(np.asarray(meta["axes"][k], float) for k in names)
     config = meta["config"]
     growth = growth_from_dict(config["growth"]) if config.get("growth") else None

@@ -388,3 +388,33 @@ def test_listing_reads_only_its_own_folder(tmp_path):
 def test_listing_numbers_it_cannot_hold_are_refused_with_the_line(line, match):
     with pytest.raises(ValueError, match=rf"<text>:2: .*{match}"):
         mj.load_listing(f"define chemical R\n{line}\n")
+
+
+def _sweep_file(path: Path, changes=None, arrays_changes=None) -> Path:
+    """A sweep file of two 8x8 members written by hand (nothing simulated)."""
+    from morphojax._serialise import model_to_dict, write_npz
+
+    meta = {"kind": "morphojax.sweep", "names": ["ratio"], "axes": {"ratio": [4.0, 5.0]}, "members": None,
+            "config": {"model": model_to_dict(mj.Turing()), "steps": 1, "dt": 0.01, "boundary": "wrap",
+                       "shape": [8, 8]},
+            "species": ["a", "b"], "seconds": 0.1, "table": [{"member": 0}, {"member": 1}]}
+    meta |= changes or {}
+    arrays = {"species_a": np.full((2, 8, 8), 4.0, np.float32), "species_b": np.full((2, 8, 8), 4.5, np.float32),
+              "value_ratio": np.asarray([4.0, 5.0]), "size": np.full((2, 2), 8), "blowup_step": np.full(2, -1),
+              "overflow": np.zeros(2, bool), "change": np.zeros(2)}
+    arrays |= arrays_changes or {}
+    return write_npz(path, metadata=np.asarray(json.dumps(meta)), **arrays)
+
+
+def test_sweep_files_round_trip_and_tampered_fields_are_refused(tmp_path):
+    back = mj.load_sweep(_sweep_file(tmp_path / "s.npz"))
+    assert len(back) == 2 and back.species == ("a", "b")
+    for changes, arrays, match in (
+            ({"table": [{"member": 0}]}, None, "'table'"), ({"names": [3]}, None, "'names'"),
+            ({"species": []}, None, "'species'"), ({"axes": {"ratio": [4.0]}}, None, "'axes'"),
+            ({"config": {}}, None, "'config'"), (None, {"blowup_step": np.full(5, -1)}, "'blowup_step'"),
+            (None, {"value_ratio": np.asarray([4.0, 5.0, 6.0])}, "do not hold 3 members"),
+            (None, {"species_a": np.full((3, 8, 8), 4.0)}, "same shape")):
+        bad = _sweep_file(tmp_path / "bad.npz", changes, arrays)
+        with pytest.raises(ValueError, match=rf"bad\.npz .*{match}"):
+            mj.load_sweep(bad)
