@@ -51,6 +51,14 @@ def _vertex_colours(colour, n: int):
     return c.astype(np.uint8)
 
 
+def _written_by() -> str:
+    """The version line every mesh file carries (morphojax's version and the file format number)."""
+    from .._serialise import FORMAT_VERSION
+    from .._version import __version__
+
+    return f"written by morphojax {__version__}, format {FORMAT_VERSION}"
+
+
 def write_ply(path, vertices, faces, colour=None, comment: str = "morphojax") -> Path:
     """A binary little-endian PLY triangle mesh with optional vertex colours: `colour` is
     one RGB triple for every vertex or an (V, 3) array, one per vertex (uint8, or floats
@@ -59,7 +67,7 @@ def write_ply(path, vertices, faces, colour=None, comment: str = "morphojax") ->
     vertices = np.asarray(vertices, np.float32).reshape(-1, 3)
     faces = np.asarray(faces, np.int32).reshape(-1, 3)
     colours = _vertex_colours(colour, len(vertices))
-    header = ["ply", "format binary_little_endian 1.0", f"comment {comment}",
+    header = ["ply", "format binary_little_endian 1.0", f"comment {comment}", f"comment {_written_by()}",
               f"element vertex {len(vertices)}", "property float x", "property float y", "property float z"]
     vdtype = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
     if colours is not None:
@@ -73,11 +81,15 @@ def write_ply(path, vertices, faces, colour=None, comment: str = "morphojax") ->
     frec = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     frec["n"] = 3
     frec["i"] = faces
-    with open(path, "wb") as fh:
-        fh.write(("\n".join(header) + "\n").encode("ascii"))
-        fh.write(vrec.tobytes())
-        fh.write(frec.tobytes())
-    return path
+    from .._serialise import write_atomically
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            fh.write(("\n".join(header) + "\n").encode("ascii"))
+            fh.write(vrec.tobytes())
+            fh.write(frec.tobytes())
+
+    return write_atomically(path, write)
 
 
 def read_ply(path, colours: bool = False):
@@ -135,7 +147,7 @@ def write_obj(path, vertices, faces, colour=None, comment: str = "morphojax", *,
 
     def write(tmp):
         with open(tmp, "w") as fh:
-            fh.write(f"# {comment}\n")
+            fh.write(f"# {comment}\n# {_written_by()}\n")
             if texture is not None:
                 fh.write(f"mtllib {material.name}\nusemtl morphojax\n")
             if colours is None:
