@@ -93,7 +93,7 @@ def _map_leaves(model):
 
 def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth, sources, key, check_dt, origin, plan,
              solver, until):
-    domain = as_domain(domain, stencil=stencil, boundary=boundary)
+    domain = as_domain(domain, stencil=stencil, boundary=boundary, ndim=getattr(state, "ndim", 2))
     cfg = Config(bounds=bounds_policy(bounds), dynamic=bool(state.growable or growth is not None))
     if cfg.dynamic and not domain.supports_growth:
         raise ValueError(f"growth is not supported on the {domain.description}: pass growth=None and a state without "

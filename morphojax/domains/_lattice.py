@@ -25,6 +25,10 @@ class Lattice(AbstractDomain):
             Laplacian (a rate D with "moore" diffuses as 3 D with "nine-point"), spectral
             radius 12 (the stripe mode, alternating along one axis; the checkerboard gives
             8). The thesis's diffusion rates are used with "moore" as printed.
+            Other dimensions: "three-point" ([1, -2, 1], 1D, radius 4), "seven-point" (the
+            3D five-point, radius 12) and "nineteen-point" (the isotropic 3D stencil: faces
+            2/6, edges 1/6, centre -4; radius 16/3; the 3D default). 1D and 3D lattices take
+            one diffusion rate per species (no maps, anisotropy or growth).
         boundary: "wrap" (toroidal) or "no-flux" (ghost cell = edge cell, as scipy's
             mode="reflect": pure diffusion conserves mass).
         maps: how a diffusion map (a model whose rates are (rows, cols) arrays) diffuses:
@@ -80,6 +84,9 @@ class Lattice(AbstractDomain):
         self.maps = str(maps)
         self.anisotropic = _links.species_indices(anisotropic, "Lattice")
         self.polarity, self.polarised, self.follow = _links.polarity_fields(polarity, polarised, follow, "Lattice")
+        if self.ndim != 2 and (self.anisotropic or self.polarity is not None or self.follow is not None):
+            raise ValueError(f"Lattice: anisotropic diffusion and polarity are defined on 2D lattices; the "
+                             f"{self.stencil} stencil is {self.ndim}D")
 
     @property
     def polarised_cells(self) -> bool:
@@ -92,11 +99,12 @@ class Lattice(AbstractDomain):
 
     @property
     def ndim(self) -> int:
-        return 2
+        """Spatial axes: 1 for "three-point", 3 for "seven-point" and "nineteen-point", else 2."""
+        return _stencils.STENCIL_NDIM[self.stencil]
 
     @property
     def supports_growth(self) -> bool:
-        return not self.polarised_cells
+        return self.ndim == 2 and not self.polarised_cells
 
     @property
     def description(self) -> str:
@@ -107,16 +115,26 @@ class Lattice(AbstractDomain):
         return f"{self.stencil} stencil"
 
     def carry(self, fields, size, dynamic):
+        if self.ndim != 2:
+            return _stencils.pad_nd(fields, self.boundary, self.ndim)
         p = _stencils.pad(fields, self.boundary)
         if dynamic:  # ghost cells along the active region's edges
             p = _stencils.repad(p, fields, size, self.boundary)
         return p
 
     def interior(self, carried):
-        return carried[..., 1:-1, 1:-1]
+        return carried[(Ellipsis,) + (slice(1, -1),) * self.ndim]
 
     def diffusion(self, carried, rates):
         n = carried.shape[0]
+        if self.ndim != 2:  # 1D and 3D: the stencil with one rate per species
+            for i in range(n):
+                if jnp.ndim(rates[i]) > 0 and jnp.size(rates[i]) > 1:
+                    raise ValueError(f"Lattice: diffusion rate maps are supported on 2D lattices; species {i} "
+                                     f"has rates of shape {jnp.shape(rates[i])} on the {self.ndim}D {self.stencil} "
+                                     "stencil")
+            lap = _stencils.laplacian_padded_nd(carried, self.stencil)
+            return [rates[i] * lap[i] for i in range(n)]
         _links.check_species(self.anisotropic, n, "Lattice")
         if self.follow is not None:
             _links.check_species((self.follow,), n, "Polarize", "reagent")
@@ -161,28 +179,33 @@ class Lattice(AbstractDomain):
             # buffer in place, with the ghost cells along the region's edges as four lines
             # (a fresh padded copy here makes XLA:CPU fuse the update into the copy)
             return _stencils.repad(carried, new, size, self.boundary)
+        if self.ndim != 2:
+            return _stencils.pad_nd(new, self.boundary, self.ndim)
         return _stencils.pad(new, self.boundary)  # the whole array is the lattice
 
     def active_mask(self, shape, size):
         return _stencils.active_mask(shape, size)
 
     def apply(self, fields):
+        if self.ndim != 2:
+            padded = _stencils.pad_nd(jnp.asarray(fields), self.boundary, self.ndim)
+            return _stencils.laplacian_padded_nd(padded, self.stencil)
         return _stencils.laplacian_padded(_stencils.pad(jnp.asarray(fields), self.boundary), self.stencil)
 
     # ---- the operator's eigenbasis (exponential and implicit solvers, linear stability) --
     def eigenvalues(self, shape):
-        """The stencil's eigenvalues on a (rows, cols) lattice of this boundary (float64,
+        """The stencil's eigenvalues on a lattice of `shape` with this boundary (float64,
         cells^-2), laid out as the coefficients of `transform`: exact for the lattice, not
         the continuum Laplacian's -|k|^2 (see `_stencils.eigenvalues`)."""
         return _stencils.eigenvalues(self.stencil, self.boundary, shape)
 
     def transform(self, fields):
-        """Coefficients of `fields` (..., rows, cols) in the stencil's eigenbasis: the real
-        FFT for "wrap", the orthonormal DCT-II for "no-flux"."""
-        return _stencils.forward_transform(fields, self.boundary)
+        """Coefficients of `fields` (..., *spatial) in the stencil's eigenbasis: the real FFT
+        for "wrap", the orthonormal DCT-II for "no-flux"."""
+        return _stencils.forward_transform(fields, self.boundary, self.ndim)
 
     def inverse_transform(self, coefficients, shape):
-        """The fields (..., rows, cols) whose `transform` is `coefficients`."""
+        """The fields (..., *shape) whose `transform` is `coefficients`."""
         return _stencils.inverse_transform(coefficients, self.boundary, shape)
 
     # ---- blocks of a growing lattice (the execution plans of `_plan`) --------------------
@@ -195,9 +218,10 @@ class Lattice(AbstractDomain):
         return jax.lax.dynamic_update_slice(carried, block, (0,) * carried.ndim)
 
 
-def as_domain(domain=None, *, stencil=None, boundary=None) -> AbstractDomain:
+def as_domain(domain=None, *, stencil=None, boundary=None, ndim: int = 2) -> AbstractDomain:
     """The domain of a run: `domain`, or a `Lattice` (the default domain) from the
-    `stencil`/`boundary` shorthands.
+    `stencil`/`boundary` shorthands; without a stencil, the default of fields with `ndim`
+    spatial axes ("three-point", "nine-point", "nineteen-point").
 
     Giving both a domain and a shorthand is an error (they could disagree).
     """
@@ -209,7 +233,8 @@ def as_domain(domain=None, *, stencil=None, boundary=None) -> AbstractDomain:
         if not isinstance(domain, AbstractDomain):
             raise ValueError(f"domain must be a morphojax domain such as mj.Lattice(...) (got {domain!r})")
         return domain
-    return Lattice("nine-point" if stencil is None else stencil, "wrap" if boundary is None else boundary)
+    default = _stencils.DEFAULT_STENCIL.get(ndim, "nine-point")
+    return Lattice(default if stencil is None else stencil, "wrap" if boundary is None else boundary)
 
 
 def max_stable_dt(max_diffusion: float, stencil: str = "nine-point") -> float:

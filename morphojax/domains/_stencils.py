@@ -23,7 +23,11 @@ import numpy as np
 from .._checks import check_choice
 
 BOUNDARIES = ("wrap", "no-flux")
-STENCILS = ("nine-point", "five-point", "moore")
+STENCILS = ("nine-point", "five-point", "moore", "three-point", "seven-point", "nineteen-point")
+# the number of spatial axes each stencil acts on, and the default stencil of each
+STENCIL_NDIM = {"nine-point": 2, "five-point": 2, "moore": 2, "three-point": 1, "seven-point": 3,
+                "nineteen-point": 3}
+DEFAULT_STENCIL = {1: "three-point", 2: "nine-point", 3: "nineteen-point"}
 
 # Largest |eigenvalue| of each stencil over all lattice sizes, in cells^-2. The symbol of a
 # 3x3 stencil at wave numbers (k, l) is bilinear in (cos k, cos l), so its extremes lie at
@@ -35,10 +39,18 @@ STENCILS = ("nine-point", "five-point", "moore")
 #     stripes (-1, +1) (the checkerboard gives only -8).
 # Each is attained on a wrapped lattice with an even number of rows or columns and bounds
 # every other lattice and boundary (no-flux drops links, which lowers the quadratic form).
-SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0, "moore": 12.0}
+#   three-point [1, -2, 1]: 2 cos k - 2, -4 at k = pi;
+#   seven-point (the 3D five-point): 2 (cos k + cos l + cos m) - 6, -12 at (pi, pi, pi);
+#   nineteen-point, the isotropic 3D stencil (faces 2/6, edges 1/6, centre -24/6):
+#     (4 (cos k + cos l + cos m) + 4 (cos k cos l + cos k cos m + cos l cos m) - 24) / 6,
+#     -16/3 where two phases are pi and one is 0 (the corner (pi, pi, pi) gives only -4).
+SPECTRAL_RADIUS = {"nine-point": 16.0 / 3.0, "five-point": 8.0, "moore": 12.0, "three-point": 4.0,
+                   "seven-point": 12.0, "nineteen-point": 16.0 / 3.0}
 _STENCIL_ALIASES = {"9": "nine-point", "9-point": "nine-point", "nine": "nine-point",
                     "5": "five-point", "5-point": "five-point", "five": "five-point",
-                    "8": "moore", "8-neighbour": "moore", "8-neighbor": "moore", "eight": "moore"}
+                    "8": "moore", "8-neighbour": "moore", "8-neighbor": "moore", "eight": "moore",
+                    "3": "three-point", "3-point": "three-point", "7": "seven-point", "7-point": "seven-point",
+                    "19": "nineteen-point", "19-point": "nineteen-point"}
 _BOUNDARY_ALIASES = {"periodic": "wrap", "toroidal": "wrap", "noflux": "no-flux", "neumann": "no-flux",
                      "reflect": "no-flux"}
 
@@ -142,9 +154,18 @@ def active_mask(shape, size):
 
 
 # ---- the stencils' eigenvalues: what the exponential and implicit solvers step on -----------
-def symbol(stencil: str, cos_r, cos_c):
-    """The stencil's eigenvalue (cells^-2) for the wave whose row and column phases have
-    cosines `cos_r`, `cos_c` (broadcast): the formulas of `SPECTRAL_RADIUS` above."""
+def symbol(stencil: str, *cosines):
+    """The stencil's eigenvalue (cells^-2) for the wave whose phases along the axes have
+    these cosines (broadcast, one per axis): the formulas of `SPECTRAL_RADIUS` above."""
+    if stencil == "three-point":
+        (c,) = cosines
+        return 2.0 * c - 2.0
+    if stencil in ("seven-point", "nineteen-point"):
+        a, b, c = cosines
+        if stencil == "seven-point":
+            return 2.0 * (a + b + c) - 6.0
+        return (4.0 * (a + b + c) + 4.0 * (a * b + a * c + b * c) - 24.0) / 6.0
+    cos_r, cos_c = cosines
     if stencil == "five-point":
         return 2.0 * cos_r + 2.0 * cos_c - 4.0
     if stencil == "moore":
@@ -153,34 +174,67 @@ def symbol(stencil: str, cos_r, cos_c):
 
 
 def eigenvalues(stencil: str, boundary: str, shape) -> np.ndarray:
-    """The stencil's eigenvalues (float64, cells^-2) on a (rows, cols) lattice, laid out as
-    the coefficients of `forward_transform`.
+    """The stencil's eigenvalues (float64, cells^-2) on a lattice of `shape` (one length per
+    axis), laid out as the coefficients of `forward_transform`.
 
-    "wrap": the waves exp(2 pi i (k r / rows + l c / cols)) diagonalise every 3x3 stencil
-    on the torus, with phases t = 2 pi k / N; the real FFT keeps columns l <= cols / 2.
-    "no-flux" (ghost cell = edge cell): the cosines cos(pi k (r + 1/2) / N), the DCT-II
-    basis, are even about both half-cell borders, so the ghost cells the stencil reads are
-    exactly the values the reflection gives; phases t = pi k / N. Both are exact, not
-    approximations of the continuum Laplacian: the stencil stays the model."""
-    rows, cols = (int(n) for n in shape)
+    "wrap": the waves exp(2 pi i sum_a k_a x_a / N_a) diagonalise every stencil on the
+    torus, with phases t = 2 pi k / N; the real FFT keeps k <= N / 2 on the last axis.
+    "no-flux" (ghost cell = edge cell): the cosines cos(pi k (x + 1/2) / N), the DCT-II
+    basis, are even about both half-cell borders of every axis, so the ghost cells the
+    stencil reads are exactly the values the reflection gives; phases t = pi k / N. Both
+    are exact, not approximations of the continuum Laplacian: the stencil stays the model."""
+    shape = tuple(int(n) for n in shape)
+    phases = []
+    for axis, n in enumerate(shape):
+        if boundary == "wrap":
+            t = 2.0 * np.pi * (np.fft.rfftfreq(n) if axis == len(shape) - 1 else np.fft.fftfreq(n))
+        else:
+            t = np.pi * np.arange(n) / n
+        phases.append(np.cos(t).reshape([-1 if a == axis else 1 for a in range(len(shape))]))
+    return symbol(stencil, *phases)
+
+
+def forward_transform(x, boundary: str, ndim: int = 2):
+    """Coefficients of `x` (..., *spatial) in the eigenbasis of `eigenvalues` (its last
+    `ndim` axes): the real FFT for "wrap", the orthonormal DCT-II for "no-flux"."""
+    axes = tuple(range(-ndim, 0))
     if boundary == "wrap":
-        t_r = 2.0 * np.pi * np.fft.fftfreq(rows)
-        t_c = 2.0 * np.pi * np.fft.rfftfreq(cols)
-    else:
-        t_r = np.pi * np.arange(rows) / rows
-        t_c = np.pi * np.arange(cols) / cols
-    return symbol(stencil, np.cos(t_r)[:, None], np.cos(t_c)[None, :])
-
-
-def forward_transform(x, boundary: str):
-    """Coefficients of `x` (..., rows, cols) in the eigenbasis of `eigenvalues`."""
-    if boundary == "wrap":
-        return jnp.fft.rfft2(x, axes=(-2, -1))
-    return jax.scipy.fft.dctn(x, type=2, axes=(-2, -1), norm="ortho")
+        return jnp.fft.rfftn(x, axes=axes)
+    return jax.scipy.fft.dctn(x, type=2, axes=axes, norm="ortho")
 
 
 def inverse_transform(coefficients, boundary: str, shape):
-    """The fields (..., rows, cols) of `forward_transform`'s coefficients (real)."""
+    """The fields (..., *shape) of `forward_transform`'s coefficients (real)."""
+    axes = tuple(range(-len(shape), 0))
     if boundary == "wrap":
-        return jnp.fft.irfft2(coefficients, s=tuple(shape), axes=(-2, -1))
-    return jax.scipy.fft.idctn(coefficients, type=2, axes=(-2, -1), norm="ortho")
+        return jnp.fft.irfftn(coefficients, s=tuple(shape), axes=axes)
+    return jax.scipy.fft.idctn(coefficients, type=2, axes=axes, norm="ortho")
+
+
+# ---- 1D and 3D lattices: the stencil as offsets and weights ----------------------------------
+_OFFSETS_3D = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)]
+STENCIL_WEIGHTS_ND = {
+    "three-point": {(-1,): 1.0, (1,): 1.0, (0,): -2.0},
+    "seven-point": {**{o: 1.0 for o in _OFFSETS_3D if sum(map(abs, o)) == 1}, (0, 0, 0): -6.0},
+    "nineteen-point": {**{o: 2.0 / 6.0 for o in _OFFSETS_3D if sum(map(abs, o)) == 1},
+                       **{o: 1.0 / 6.0 for o in _OFFSETS_3D if sum(map(abs, o)) == 2}, (0, 0, 0): -4.0},
+}
+
+
+def pad_nd(x, boundary: str, ndim: int):
+    """One ring of ghost cells on the last `ndim` axes of `x` (the whole array is the lattice)."""
+    widths = [(0, 0)] * (x.ndim - ndim) + [(1, 1)] * ndim
+    return jnp.pad(x, widths, mode="wrap" if boundary == "wrap" else "edge")
+
+
+def laplacian_padded_nd(p, stencil: str):
+    """A 1D or 3D stencil (`STENCIL_WEIGHTS_ND`) on the interior of a ghost-padded array."""
+    weights = STENCIL_WEIGHTS_ND[stencil]
+    ndim = STENCIL_NDIM[stencil]
+    lead = p.ndim - ndim
+
+    def shifted(offset):
+        return p[(Ellipsis,) + tuple(slice(1 + o, p.shape[lead + a] - 1 + o) for a, o in enumerate(offset))]
+
+    centre = weights[(0,) * ndim] * shifted((0,) * ndim)
+    return centre + sum(w * shifted(o) for o, w in weights.items() if any(o))

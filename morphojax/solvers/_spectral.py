@@ -1,6 +1,6 @@
 """Exponential (ETDRK) and implicit-explicit (IMEX) steps on the stencil's own eigenbasis.
 
-On a square lattice with uniform rates, diffusion is the linear operator L = D_i S for
+On a lattice (1D, 2D or 3D) with uniform rates, diffusion is the linear operator L = D_i S for
 species i, S the stencil, and S is diagonal in a known basis: the real FFT for "wrap" and
 the DCT-II for "no-flux" (`Lattice.eigenvalues`, exact for the stencil). There each mode
 evolves by its eigenvalue z / dt with z = dt D_i lambda <= 0, so diffusion can be taken
@@ -42,13 +42,13 @@ class _TransformSolver(AbstractSolver):
     def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
         who = f"solver={self.name}(order={self.order})"
         if not isinstance(domain, Lattice):
-            raise ValueError(f"{who} runs on the square Lattice, whose stencil the FFT or DCT diagonalises; the "
+            raise ValueError(f"{who} runs on the Lattice (1D, 2D or 3D), whose stencil the FFT or DCT diagonalises; the "
                              f"{domain.description} has no such basis: use solver=mj.Euler() there")
         if domain.polarised_cells and domain.anisotropic:
             raise ValueError(f"{who} needs isotropic diffusion: anisotropic links are not diagonal in the FFT/DCT "
                              "basis; use solver=mj.Euler()")
         shape = tuple(jnp.shape(model.diffusion()))
-        if len(shape) > 1 and shape[1:] not in ((1, 1),):
+        if any(n != 1 for n in shape[1:]):
             raise ValueError(f"{who} needs one diffusion rate per species; {type(model).__name__} diffuses with a "
                              f"rate map of shape {shape}, which the FFT/DCT basis does not diagonalise: use "
                              "solver=mj.Euler()")
@@ -70,15 +70,17 @@ class _TransformSolver(AbstractSolver):
         lam = jnp.asarray(domain.eigenvalues(shape), dt.dtype)
         barrier = bounds if isinstance(bounds, Barrier) else None
 
+        ndim = domain.ndim
+
         def coefficients(m):
-            z = dt * _rate_vector(m)[:, None, None] * lam
+            z = dt * _rate_vector(m).reshape((-1,) + (1,) * ndim) * lam
             return self.coefficients(z, dt)
 
         fixed = None if _state_dependent(model) else coefficients(model)
 
         def advance(acting, x):
-            lower, upper = per_species(acting.lower, 2), per_species(acting.upper, 2)
-            rates = per_species(_rate_vector(acting), 2)
+            lower, upper = per_species(acting.lower, ndim), per_species(acting.upper, ndim)
+            rates = per_species(_rate_vector(acting), ndim)
 
             def reaction(y):
                 r = acting.reaction(y)
@@ -104,8 +106,8 @@ class ETDRK(_TransformSolver):
     order=2: Cox-Matthews ETD2RK (4 transforms); order=4: ETDRK4 in Kassam and
     Trefethen's form (9 transforms). The phi-functions (`_phi`) are accurate to float32
     rounding at the zero mode and every other eigenvalue. Exact for pure diffusion at any dt, and with the reaction
-    accurate to the given order in dt. Runs on the square `Lattice` with one diffusion
-    rate per species, isotropic, without growth or sources (use `Euler` there).
+    accurate to the given order in dt. Runs on the `Lattice` (1D, 2D or 3D) with one
+    diffusion rate per species, isotropic, without growth or sources (use `Euler` there).
     """
 
     order: int = eqx.field(static=True)
@@ -155,8 +157,8 @@ class IMEX(_TransformSolver):
     x + F^-1[dt / (1 - z) F(R(x))] (2 transforms a step); order=2: the L-stable IMEX
     (2,2,2) Runge-Kutta scheme of Ascher, Ruuth and Spiteri (5 transforms). Unconditionally
     stable in diffusion; damps the fastest modes where ETDRK is exact. Runs where `ETDRK`
-    runs (the square `Lattice`, one rate per species; conjugate gradients for other
-    operators are not implemented).
+    runs (the `Lattice`, one rate per species; conjugate gradients for other operators
+    are not implemented).
     """
 
     order: int = eqx.field(static=True)
