@@ -23,7 +23,7 @@ from ._checks import is_concrete
 from ._progress import progress_bar
 from ._state import State
 from ._status import RunStatus
-from ._step import Carry, Config, growth_key, make_step
+from ._step import Carry, Config, growth_key, make_attempt, make_step
 
 
 def _scan(step, carry, n: int):
@@ -101,6 +101,9 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     advances each step (default Euler); with a stopping rule `until`, steps after the stop
     leave the carry as it is and the chunks after it are skipped.
     """
+    if solver is not None and solver.adaptive:  # steps * dt is the time to reach; pieces keep their own time
+        return _integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names,
+                                   growable)
     time0, step_t = (time0, step0) if clock is None else clock
     steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
     c = Carry(domain.carry(fields, size, cfg.dynamic), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False),
@@ -181,6 +184,49 @@ def _until_steady(step, domain, tol: float, dt, time0, step0):
         return jax.tree_util.tree_map(lambda old, fresh: jnp.where(done, old, fresh), c, new)
 
     return stepped
+
+
+# Step-size control of the adaptive solvers: the next step is h (0.9 / error)^(1/2) (the
+# embedded estimate's local error is O(h^2)), changed by at most 5x up and 5x down per
+# attempt; a run whose step falls below 1e-9 of its span is marked as blown up there.
+SAFETY, MAX_GROWTH, MAX_SHRINK, SMALLEST = 0.9, 5.0, 0.2, 1e-9
+
+
+def _integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names, growable):
+    """Steps of varying size h until the time steps * dt is reached: each attempt is kept
+    when its error norm is <= 1 and retried with a smaller h otherwise, inside the loop.
+    The state's step counts the steps kept; its time is time0 + the time reached, short of
+    the goal only if `solver.max_steps` attempts did not suffice."""
+    attempt = make_attempt(model, domain, dt, cfg, solver, fields.shape[1:])
+    span = steps * dt
+    steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
+    c = Carry(domain.carry(fields, size, False), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False), steady)
+    zero = jnp.zeros((), dt.dtype)
+
+    def running(s):
+        c, t, h, k = s
+        going = (t < span * (1 - 1e-6)) & (c.bad < 0)
+        return going if until is None else going & jnp.isnan(c.steady)
+
+    def one(s):
+        c, t, h, k = s
+        h_try = jnp.minimum(h, span - t)
+        new, error = attempt(c, h_try)
+        ok = error <= 1.0  # False for NaN: a non-finite step is retried smaller
+        factor = jnp.where(error > 0, SAFETY * jnp.where(error > 0, error, 1.0) ** -0.5, MAX_GROWTH)
+        h_next = h_try * jnp.clip(jnp.nan_to_num(factor, nan=MAX_SHRINK), MAX_SHRINK, MAX_GROWTH)
+        if until is not None:
+            change = jnp.max(jnp.abs(domain.interior(new.p) - domain.interior(c.p))) / h_try
+            new = new._replace(steady=jnp.where(change < until.tol, time0 + t + h_try, c.steady))
+        stuck = (h_next < SMALLEST * span) & ~ok
+        c = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, c)
+        c = c._replace(bad=jnp.where(stuck & (c.bad < 0), c.step, c.bad))
+        return c, jnp.where(ok, t + h_try, t), h_next, k + 1
+
+    c, t, _, _ = eqxi.while_loop(running, one, (c, zero, jnp.asarray(dt, dt.dtype), jnp.asarray(0, jnp.int32)),
+                                 max_steps=solver.max_steps, kind="checkpointed")
+    final = State(domain.interior(c.p), c.size, c.step, time0 + t, names, growable)
+    return final, c.bad, c.overflow, None, _steady_time(c, dt)
 
 
 def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg, checkpoint, segments, names,
@@ -274,7 +320,7 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
                 per = max(1, min(chunk, int(n)))
                 blocks, schedule = plan.chunk_blocks(current, growth, int(n), dt, origin, per)
                 final, bad_i, over_i, frames, steady_i = run(blocks=blocks, schedule=schedule, segments=None)
-            status = status.merge(RunStatus(bad_i, over_i, steady_i))
+            status = status.merge(RunStatus(bad_i, over_i, steady_i, final.step - current.step))
             if frames is not None:
                 frames_all.append(frames)
             current = final

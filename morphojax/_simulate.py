@@ -217,6 +217,9 @@ def rollout(model: AbstractModel, state: State, steps: int, dt, every: int, boun
     if not isinstance(every, (int, np.integer)) or every < 1:
         raise ValueError(f"every must be a positive integer number of steps (got {every!r})")
     options = _options(kwargs, "rollout")
+    if getattr(options["solver"], "adaptive", False):
+        raise ValueError("rollout takes snapshots every `every` steps, which an adaptive solver (rtol=...) does not "
+                         "have: use a fixed step, or simulate in pieces of simulated time")
     if isinstance(steps, (int, np.integer)) and every > steps:  # no snapshot would fall in the run
         raise ValueError(f"rollout.every must lie in [1, steps = {steps}] (got {every})")
     final, status, frames = _run(model, state, steps, dt, boundary, options, int(every), save or _save_state)
@@ -233,4 +236,4 @@ def run_status(model, state, steps, dt, boundary=None, **kwargs) -> Run:
     """
     options = _options(kwargs, "run_status", tuple(k for k in _OPTIONS if k not in ("throw", "progress")))
     final, status, _ = _run(model, state, steps, dt, boundary, options, description="")
-    return Run(final, status.nonfinite_step, status.overflow, status.steady_at)
+    return Run(final, status.nonfinite_step, status.overflow, status.steady_at, status.steps_taken)

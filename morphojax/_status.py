@@ -27,6 +27,8 @@ class RunStatus(eqx.Module):
         steady_at: the simulated time at which a stopping rule (`until=SteadyState(...)`)
             ended the run; NaN if it did not (or none was given). An array, as the other
             fields, so that it works under `jit` and `vmap`.
+        steps_taken: the steps the run made: `steps` for a fixed step, fewer when a
+            stopping rule ended it, and the accepted steps of an adaptive solver.
 
     Works under `vmap` (the attributes then carry the batch axes). The fields are JAX
     arrays even in an eager call: `bool(status.ok)` and `status.message()` give the Python view.
@@ -35,11 +37,13 @@ class RunStatus(eqx.Module):
     nonfinite_step: Array
     overflow: Array
     steady_at: Array
+    steps_taken: Array
 
-    def __init__(self, nonfinite_step, overflow, steady_at=float("nan")):
+    def __init__(self, nonfinite_step, overflow, steady_at=float("nan"), steps_taken=0):
         self.nonfinite_step = jnp.asarray(nonfinite_step)
         self.overflow = jnp.asarray(overflow)
         self.steady_at = jnp.asarray(steady_at)
+        self.steps_taken = jnp.asarray(steps_taken)
 
     @classmethod
     def healthy(cls) -> "RunStatus":
@@ -54,7 +58,7 @@ class RunStatus(eqx.Module):
         """This status followed by a later piece's: the first blow-up step, any overflow."""
         step = jnp.where(self.nonfinite_step >= 0, self.nonfinite_step, later.nonfinite_step)
         steady = jnp.where(jnp.isnan(self.steady_at), later.steady_at, self.steady_at)
-        return RunStatus(step, self.overflow | later.overflow, steady)
+        return RunStatus(step, self.overflow | later.overflow, steady, self.steps_taken + later.steps_taken)
 
     def message(self) -> str:
         """The status in words (concrete values)."""
@@ -89,13 +93,14 @@ class Run(eqx.Module):
 
     Unpacks as (state, nonfinite_step, overflow), as a tuple did before stopping rules;
     `steady_at` is the simulated time a stopping rule ended the run (NaN if it did not),
-    and `run.status` the whole `RunStatus`.
+    `steps_taken` the steps it made, and `run.status` the whole `RunStatus`.
     """
 
     state: object
     nonfinite_step: Array
     overflow: Array
     steady_at: Array
+    steps_taken: Array
 
     def _fields(self):
         return (self.state, self.nonfinite_step, self.overflow)
@@ -111,4 +116,4 @@ class Run(eqx.Module):
 
     @property
     def status(self) -> RunStatus:
-        return RunStatus(self.nonfinite_step, self.overflow, self.steady_at)
+        return RunStatus(self.nonfinite_step, self.overflow, self.steady_at, self.steps_taken)

@@ -208,3 +208,33 @@ def test_sweep_and_phase_take_a_solver():
     phase = mj.Phase(model, steps=30, dt=0.1, solver=mj.IMEX(1))
     assert mj.Phase.from_dict(phase.to_dict()) == phase
     assert mj.Phase(model, steps=3, dt=0.001).to_dict()["solver"] == {"solver": "Euler", "order": 1}
+
+
+def test_adaptive_steps_reach_the_time_and_follow_the_tolerance():
+    """steps * dt is the time reached; the error against a fine fixed-step run of the same
+    scheme falls with rtol; a first step too large is rejected and retried inside jit."""
+    with jax.enable_x64(True):
+        u, v = _start((9, 10), seed=6)
+        state = mj.State.from_arrays([u, v])
+        model = mj.GrayScott(FEED, KILL, DU, DV)
+        for scheme in (mj.ETDRK, mj.IMEX):
+            fine = mj.simulate(model, state, 1024, 1 / 64, solver=scheme(2)).fields
+            errors = []
+            for rtol in (1e-2, 1e-4):
+                run = mj.run_status(model, state, 4, 4.0, solver=scheme(2, rtol=rtol, atol=1e-9))
+                np.testing.assert_allclose(float(run.state.time), 16.0, rtol=1e-12)
+                assert int(run.steps_taken) == int(run.state.step) > 4  # dt = 4 was too large: retried smaller
+                errors.append(float(jnp.abs(run.state.fields - fine).max()))
+            assert errors[1] < errors[0] / 10, (scheme.__name__, errors)
+        assert int(mj.run_status(model, state, 64, 0.25, solver=mj.ETDRK(2)).steps_taken) == 64
+
+
+def test_adaptive_refusals():
+    state = mj.paper_state(jax.random.key(0), (10, 10))
+    with pytest.raises(ValueError, match="no embedded error estimate"):
+        mj.ETDRK(4, rtol=1e-3)
+    with pytest.raises(ValueError, match="ETDRK.rtol"):
+        mj.ETDRK(2, rtol=-1.0)
+    with pytest.raises(ValueError, match="adaptive solver"):
+        mj.rollout(mj.Turing(4.0, 3.0), state, 10, 0.1, 5, solver=mj.ETDRK(2, rtol=1e-3))
+    assert mj.solvers.solver_from_dict(mj.ETDRK(2, rtol=1e-3).to_dict()) == mj.ETDRK(2, rtol=1e-3)

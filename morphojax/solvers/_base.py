@@ -27,6 +27,12 @@ class AbstractSolver(eqx.Module):
     def name(self) -> str:
         return type(self).__name__
 
+    @property
+    def adaptive(self) -> bool:
+        """Whether the step size follows an error estimate (then `steps * dt` is the time to
+        reach and `dt` the first step)."""
+        return False
+
     @abc.abstractmethod
     def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
         """Raise a ValueError, saying what to use instead, where this solver cannot run."""

@@ -19,4 +19,6 @@ def solver_from_dict(d: dict | None) -> AbstractSolver:
     name = d.get("solver")
     if name not in _SOLVERS:
         raise ValueError(f"unknown solver {name!r} in the file; known: {', '.join(_SOLVERS)}")
-    return Euler() if name == "Euler" else _SOLVERS[name](order=int(d.get("order", 2)))
+    if name == "Euler":
+        return Euler()
+    return _SOLVERS[name](order=int(d.get("order", 2)), rtol=d.get("rtol"), atol=d.get("atol"))

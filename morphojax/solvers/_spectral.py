@@ -19,6 +19,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._bounds import Barrier
+from .._checks import check_count, check_finite, check_range
 from ..domains import Lattice
 from ..models import AbstractModel, per_species
 from ._base import AbstractSolver
@@ -60,25 +61,35 @@ class _TransformSolver(AbstractSolver):
             raise ValueError(f"{who}: sources add a fixed amount per step, so their total would change with dt; "
                              "run phases with sources with solver=mj.Euler()")
 
+    def to_dict(self) -> dict:
+        data = {"solver": self.name, "order": self.order}
+        return {**data, "rtol": self.rtol, "atol": self.atol} if self.adaptive else data
+
     def check_dt(self, domain, dt, model) -> None:
         # diffusion is exact (ETDRK) or implicit (IMEX): no diffusion limit. The reaction's
         # own limit depends on the state and is not checked; a blow-up is reported with its step.
         return None
 
+    @property
+    def adaptive(self) -> bool:
+        """Whether the step size follows an embedded error estimate (`rtol` given)."""
+        return self.rtol is not None
+
     def make_advance(self, model, domain: Lattice, dt, bounds, shape):
-        """advance(acting model, x) -> x after one step, before sources and the clamp."""
+        """advance(acting model, x, h=dt) -> x after one step of h, before sources and the
+        clamp; with `adaptive`, (x after the step, the embedded lower-order estimate)."""
         lam = jnp.asarray(domain.eigenvalues(shape), dt.dtype)
         barrier = bounds if isinstance(bounds, Barrier) else None
-
         ndim = domain.ndim
 
-        def coefficients(m):
-            z = dt * _rate_vector(m).reshape((-1,) + (1,) * ndim) * lam
-            return self.coefficients(z, dt)
+        def coefficients(m, h):
+            z = h * _rate_vector(m).reshape((-1,) + (1,) * ndim) * lam
+            return self.coefficients(z, h)
 
-        fixed = None if _state_dependent(model) else coefficients(model)
+        # a fixed step's coefficients are computed once, outside the loop
+        fixed = None if self.adaptive or _state_dependent(model) else coefficients(model, dt)
 
-        def advance(acting, x):
+        def advance(acting, x, h=dt):
             lower, upper = per_species(acting.lower, ndim), per_species(acting.upper, ndim)
             rates = per_species(_rate_vector(acting), ndim)
 
@@ -91,11 +102,27 @@ class _TransformSolver(AbstractSolver):
             def euler_rate(y):  # reaction + diffusion, the stencil applied in cell space
                 return reaction(y) + rates * domain.apply(y)
 
-            co = fixed if fixed is not None else coefficients(acting)
-            return self.advance(co, x, reaction, euler_rate, domain.transform,
-                                lambda c: domain.inverse_transform(c, shape))
+            co = fixed if fixed is not None else coefficients(acting, h)
+            high, low = self.advance(co, x, reaction, euler_rate, domain.transform,
+                                     lambda c: domain.inverse_transform(c, shape))
+            return (high, low) if self.adaptive else high
 
         return advance
+
+
+def _check_tolerances(who: str, order: int, embedded: tuple, rtol, atol):
+    """(rtol, atol) as floats or (None, None); an error where the order has no embedded pair."""
+    if rtol is None and atol is None:
+        return None, None
+    if order not in embedded:
+        raise ValueError(f"{who}(order={order}) has no embedded error estimate for adaptive steps; adaptive "
+                         f"stepping needs order {' or '.join(map(str, embedded))}")
+    rtol = 1e-3 if rtol is None else rtol
+    atol = 1e-6 if atol is None else atol
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        check_finite(value, f"{who}.{name}")
+        check_range(value, f"{who}.{name}", low=0.0, low_open=name == "rtol")
+    return float(rtol), float(atol)
 
 
 class ETDRK(_TransformSolver):
@@ -108,14 +135,27 @@ class ETDRK(_TransformSolver):
     rounding at the zero mode and every other eigenvalue. Exact for pure diffusion at any dt, and with the reaction
     accurate to the given order in dt. Runs on the `Lattice` (1D, 2D or 3D) with one
     diffusion rate per species, isotropic, without growth or sources (use `Euler` there).
+
+    Adaptive steps (order 2): with `rtol` (and `atol`, default 1e-6) the step size follows
+    the embedded ETD1 estimate, which is the scheme's own first stage and costs nothing:
+    `steps * dt` is then the simulated time to reach and `dt` the first step, a step whose
+    error norm exceeds 1 is retried smaller inside the compiled loop (see
+    `_step.make_attempt` for the norm), and at most `max_steps` attempts are made.
     """
 
     order: int = eqx.field(static=True)
+    rtol: float | None = eqx.field(static=True)
+    atol: float | None = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
 
-    def __init__(self, order: int = 2):
+    def __init__(self, order: int = 2, *, rtol: float | None = None, atol: float | None = None,
+                 max_steps: int = 100_000):
         if order not in (1, 2, 4):
             raise ValueError(f"ETDRK.order must be 1, 2 or 4 (got {order!r})")
         self.order = int(order)
+        self.rtol, self.atol = _check_tolerances("ETDRK", self.order, (2,), rtol, atol)
+        check_count(max_steps, "ETDRK.max_steps", "attempted steps", low=1)
+        self.max_steps = int(max_steps)
 
     def coefficients(self, z, dt):
         if self.order == 1:
@@ -127,12 +167,13 @@ class ETDRK(_TransformSolver):
                 "f1": dt * (p1 - 3 * p2 + 4 * p3), "f2": dt * (p2 - 2 * p3), "f3": dt * (4 * p3 - p2)}
 
     def advance(self, co, x, reaction, euler_rate, fwd, inv):
+        """(the step, its embedded lower-order estimate or None)."""
         if self.order == 1:
-            return x + inv(co["p1"] * fwd(euler_rate(x)))
-        if self.order == 2:
+            return x + inv(co["p1"] * fwd(euler_rate(x))), None
+        if self.order == 2:  # the first stage is ETD1: the embedded estimate comes free
             nx = reaction(x)
             a = x + inv(co["p1"] * fwd(euler_rate(x)))
-            return a + inv(co["p2"] * fwd(reaction(a) - nx))
+            return a + inv(co["p2"] * fwd(reaction(a) - nx)), a
         v = fwd(x)
         nv = fwd(reaction(x))
         a = co["E2"] * v + co["Q"] * nv
@@ -141,7 +182,7 @@ class ETDRK(_TransformSolver):
         nb = fwd(reaction(inv(b)))
         c = co["E2"] * a + co["Q"] * (2 * nb - nv)
         nc = fwd(reaction(inv(c)))
-        return inv(co["E"] * v + co["f1"] * nv + 2 * co["f2"] * (na + nb) + co["f3"] * nc)
+        return inv(co["E"] * v + co["f1"] * nv + 2 * co["f2"] * (na + nb) + co["f3"] * nc), None
 
 
 # Ascher, Ruuth and Spiteri's IMEX (2,2,2) scheme (Appl. Numer. Math. 25, 1997): L-stable,
@@ -159,27 +200,42 @@ class IMEX(_TransformSolver):
     stable in diffusion; damps the fastest modes where ETDRK is exact. Runs where `ETDRK`
     runs (the `Lattice`, one rate per species; conjugate gradients for other operators
     are not implemented).
+
+    Adaptive steps (order 2): with `rtol` (and `atol`, default 1e-6) the step size follows
+    the difference from an IMEX1 step from the same state (two transforms more a step),
+    as for `ETDRK`.
     """
 
     order: int = eqx.field(static=True)
+    rtol: float | None = eqx.field(static=True)
+    atol: float | None = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
 
-    def __init__(self, order: int = 2):
+    def __init__(self, order: int = 2, *, rtol: float | None = None, atol: float | None = None,
+                 max_steps: int = 100_000):
         if order not in (1, 2):
             raise ValueError(f"IMEX.order must be 1 or 2 (got {order!r})")
         self.order = int(order)
+        self.rtol, self.atol = _check_tolerances("IMEX", self.order, (2,), rtol, atol)
+        check_count(max_steps, "IMEX.max_steps", "attempted steps", low=1)
+        self.max_steps = int(max_steps)
 
     def coefficients(self, z, dt):
         if self.order == 1:
             return {"h": dt / (1.0 - z)}
-        return {"z": z, "solve": 1.0 / (1.0 - _ARS_GAMMA * z), "dt": dt}
+        co = {"z": z, "solve": 1.0 / (1.0 - _ARS_GAMMA * z), "dt": dt}
+        return {**co, "h": dt / (1.0 - z)} if self.adaptive else co
 
     def advance(self, co, x, reaction, euler_rate, fwd, inv):
+        """(the step, its embedded lower-order estimate or None)."""
         if self.order == 1:
-            return x + inv(co["h"] * fwd(euler_rate(x)))
+            return x + inv(co["h"] * fwd(euler_rate(x))), None
         g, d, h = _ARS_GAMMA, _ARS_DELTA, co["dt"]
         v = fwd(x)
         nx = reaction(x)
         u1 = co["solve"] * (v + h * g * fwd(nx))
         n1 = reaction(inv(u1))
         u2 = co["solve"] * (v + (1.0 - g) * co["z"] * u1 + h * fwd(d * nx + (1.0 - d) * n1))
-        return inv(u2)
+        # the embedded estimate, when asked for: IMEX1 (SBDF1) from the same x, two transforms more
+        low = x + inv(co["h"] * fwd(euler_rate(x))) if self.adaptive else None
+        return inv(u2), low
