@@ -35,11 +35,13 @@ def phi(z, k):
 
 
 class Stepper:
-    """One step of a scheme for dx_i/dt = D_i S x_i + N(x)_i, x of shape (species, rows, cols)."""
+    """One step of a scheme for dx_i/dt = D_i S x_i + N(x)_i, x of shape (species, rows, cols).
+    With `lower`, the reaction is evaluated on stages clamped to it (as morphojax does)."""
 
-    def __init__(self, shape, boundary, stencil, rates, reaction):
+    def __init__(self, shape, boundary, stencil, rates, reaction, lower=None):
         self.w, self.v = eigenbasis(shape, boundary, stencil)
-        self.shape, self.rates, self.reaction = shape, np.asarray(rates, float), reaction
+        self.shape, self.rates = shape, np.asarray(rates, float)
+        self.reaction = reaction if lower is None else (lambda y: reaction(np.maximum(y, lower)))
 
     def _to(self, x):  # fields -> eigen-coefficients per species
         return np.stack([self.v.T @ xi.ravel() for xi in x])
