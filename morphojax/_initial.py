@@ -21,15 +21,15 @@ from ._state import State
 
 
 def _spatial(shape, capacity=None) -> tuple:
-    """(rows, cols) or (vertices,), checked."""
+    """(rows, cols), (vertices,) or a 3D lattice's (depth, rows, cols), checked."""
     if isinstance(shape, (str, bytes)) or not hasattr(shape, "__len__"):
-        raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})")
+        raise ValueError(f"shape must be (rows, cols), (vertices,) for a mesh or (depth, rows, cols) (got {shape!r})")
     out = check_shape(shape, "shape")  # whole numbers: (16.5, 16) is refused, not floored
     if capacity is not None:
         check_shape(capacity, "capacity")
     check_memory(cells_of(capacity if capacity is not None else out) * 4 * 4, "this initial state")
-    if len(out) not in (1, 2):
-        raise ValueError(f"shape must be (rows, cols), or (vertices,) for a mesh (got {shape!r})")
+    if len(out) not in (1, 2, 3):
+        raise ValueError(f"shape must be (rows, cols), (vertices,) for a mesh or (depth, rows, cols) (got {shape!r})")
     if min(out) < 1:
         raise ValueError(f"shape must be at least {(1,) * len(out)} (got {out})")
     if capacity is not None and len(out) != 2:
@@ -81,8 +81,9 @@ def thesis_state(key, shape, dev=2.0, mean=4.0, capacity=None) -> State:
 
 
 def gray_scott_state(key, shape, square=0.2, noise=0.02, capacity=None, *, seeded=None) -> State:
-    """Pearson's start for Gray-Scott: u = 1, v = 0, a central square at (u, v) = (0.5, 0.25),
-    plus uniform noise of amplitude `noise`. `square` is the side as a fraction of the lattice.
+    """Pearson's start for Gray-Scott: u = 1, v = 0, a central square (a cube on a 3D
+    lattice) at (u, v) = (0.5, 0.25), plus uniform noise of amplitude `noise`. `square` is
+    the side as a fraction of the lattice.
 
     On a mesh (`shape=(vertices,)`), where the vertex order says nothing about position, the
     perturbed patch is given instead: `seeded`, the indices of its vertices (the mesh
@@ -102,10 +103,9 @@ def gray_scott_state(key, shape, square=0.2, noise=0.02, capacity=None, *, seede
         if seeded is not None:
             raise ValueError("seeded= is for meshes (shape=(vertices,)); on a lattice the patch is the central "
                              "square of side `square`")
-        rows, cols = shape
-        hr, hc = max(1, int(rows * square) // 2), max(1, int(cols * square) // 2)
-        r0, c0 = rows // 2, cols // 2
-        patch = jnp.zeros(shape, bool).at[r0 - hr : r0 + hr, c0 - hc : c0 + hc].set(True)
+        # the central square (a cube in 3D) of side `square` times the lattice's
+        half = [max(1, int(n * square) // 2) for n in shape]
+        patch = jnp.zeros(shape, bool).at[tuple(slice(n // 2 - h, n // 2 + h) for n, h in zip(shape, half))].set(True)
     u = jnp.where(patch, 0.5, 1.0).astype(dtype)
     v = jnp.where(patch, 0.25, 0.0).astype(dtype)
     ku, kv = jax.random.split(key)

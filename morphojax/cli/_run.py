@@ -158,7 +158,7 @@ def _run_reaction_diffusion(item, args, out: Path):
 
 
 RUNNERS = {"reaction-diffusion": _run_reaction_diffusion, "automaton": _run_automaton,
-           "potts": _run_automaton, "cells": _run_automaton}  # by Preset.kind
+           "potts": _run_automaton, "cells": _run_automaton, "solid": _run_automaton}  # by Preset.kind
 
 
 def _run_one(exp, args, npz: Path, resume=None):

@@ -23,6 +23,7 @@ from . import _meshes  # noqa: F401  (registers the triangle-mesh presets)
 from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets: Wireworld, reinforcement patterns)
 from . import _thesis_animals  # noqa: F401  (registers the thesis's frog and moray eel on a lattice)
 from . import _cells  # noqa: F401  (registers the thesis's cell experiments, run from its listings)
+from . import _solids  # noqa: F401  (registers the 3D lattice's solid texture)
 from ._automaton_outputs import run_automaton, run_life_like
 
 REACTION_DIFFUSION_PRESETS = of_kind(ExperimentPreset.kind)  # snapshots of PRESETS by kind
