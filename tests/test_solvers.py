@@ -238,3 +238,56 @@ def test_adaptive_refusals():
     with pytest.raises(ValueError, match="adaptive solver"):
         mj.rollout(mj.Turing(4.0, 3.0), state, 10, 0.1, 5, solver=mj.ETDRK(2, rtol=1e-3))
     assert mj.solvers.solver_from_dict(mj.ETDRK(2, rtol=1e-3).to_dict()) == mj.ETDRK(2, rtol=1e-3)
+
+
+def _dense(domain, shape):
+    """The domain's operator as a dense matrix (columns: the operator on unit fields)."""
+    n = int(np.prod(shape))
+    return np.stack([np.asarray(domain.apply(np.eye(n)[j].reshape(shape))).ravel() for j in range(n)], axis=1)
+
+
+@pytest.mark.parametrize("case", ["hex-wrap", "hex-no-flux", "mesh", "lattice-map"])
+def test_imex_by_conjugate_gradients_solves_the_implicit_step(case):
+    """Where no transform diagonalises the operator, IMEX(1) on pure diffusion is one
+    backward-Euler step, (I - dt D L) x1 = x, against a dense NumPy solve (W-symmetric L)."""
+    with jax.enable_x64(True):
+        rng = np.random.default_rng(8)
+        if case == "mesh":
+            domain, shape = mj.Mesh.icosphere(1), None
+            shape = (int(domain.inverse_mass.shape[0]),)
+        elif case == "lattice-map":
+            domain, shape = mj.Lattice(), (7, 8)
+        else:
+            domain, shape = mj.HexLattice(boundary=case.split("-", 1)[1]), (8, 9)
+        rates = [1.0, 0.3] if case != "lattice-map" else [rng.uniform(0.5, 2.0, shape), 0.3 * np.ones(shape)]
+        model = mj.Reaction(lambda x, p: 0.0 * x, diffusion=rates, lower=-np.inf)
+        x = rng.normal(size=(2,) + shape)
+        out = np.asarray(mj.simulate(model, mj.State.from_arrays(list(x)), 1, 5.0, domain=domain,
+                                     solver=mj.IMEX(1)).fields)
+        n = int(np.prod(shape))
+        for i in range(2):
+            if case == "lattice-map":  # the flux form's operator for this species' map
+                single = mj.Reaction(lambda y, p: 0.0 * y, diffusion=[rates[i]], lower=-np.inf)
+                step = lambda e: np.asarray(mj.simulate(single, mj.State.from_arrays([e]), 1, 1.0,  # noqa: E731
+                                                        domain=domain, check_dt=False).fields[0]) - e
+                matrix = np.stack([step(np.eye(n)[j].reshape(shape)).ravel() for j in range(n)], axis=1)
+            else:
+                matrix = rates[i] * _dense(domain, shape)
+            expect = np.linalg.solve(np.eye(n) - 5.0 * matrix, x[i].ravel()).reshape(shape)
+            np.testing.assert_allclose(out[i], expect, atol=1e-9)
+
+
+def test_imex_two_on_the_hexagonal_lattice_is_second_order():
+    with jax.enable_x64(True):
+        u, v = _start((8, 9), seed=9)
+        state = mj.State.from_arrays([u, v])
+        model, domain = mj.GrayScott(FEED, KILL, DU, DV), mj.HexLattice()
+        ref = mj.simulate(model, state, 256, 1 / 32, domain=domain, solver=mj.IMEX(2)).fields
+        errors = [float(jnp.abs(mj.simulate(model, state, int(8 / dt), dt, domain=domain, solver=mj.IMEX(2)).fields
+                                - ref).max()) for dt in (0.5, 0.25)]
+        assert abs(np.log2(errors[0] / errors[1]) - 2) < 0.3, errors
+        with pytest.raises(ValueError, match="pointwise rate maps"):
+            mj.simulate(model.replace(du=jnp.full((8, 9), 0.2)), state, 2, 0.5,
+                        domain=mj.Lattice(maps="pointwise"), solver=mj.IMEX(1))
+        with pytest.raises(ValueError, match="ETDRK.*runs on the Lattice"):
+            mj.simulate(model, state, 2, 0.5, domain=domain, solver=mj.ETDRK(1))

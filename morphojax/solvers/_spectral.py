@@ -22,6 +22,7 @@ from .._bounds import Barrier
 from .._checks import check_count, check_finite, check_range
 from ..domains import Lattice
 from ..models import AbstractModel, per_species
+from . import _implicit
 from ._base import AbstractSolver
 from ._phi import phi
 
@@ -29,6 +30,13 @@ from ._phi import phi
 def _state_dependent(model) -> bool:
     """Whether the model's parameters (and so perhaps its rates) follow the state."""
     return type(model).at is not AbstractModel.at
+
+
+def _diagonal(domain, model) -> bool:
+    """Whether the transforms diagonalise the operator: a Lattice, isotropic, one rate per species."""
+    if not isinstance(domain, Lattice) or (domain.polarised_cells and domain.anisotropic):
+        return False
+    return all(n == 1 for n in tuple(jnp.shape(model.diffusion()))[1:])
 
 
 def _rate_vector(model):
@@ -227,6 +235,53 @@ class IMEX(_TransformSolver):
         self.rtol, self.atol = _check_tolerances("IMEX", self.order, (2,), rtol, atol)
         check_count(max_steps, "IMEX.max_steps", "attempted steps", low=1)
         self.max_steps = int(max_steps)
+
+    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+        """The transforms where they apply; conjugate gradients on other symmetric operators."""
+        if _diagonal(domain, model):
+            return super().check(domain, model, dynamic=dynamic, sources=sources)
+        who = f"solver=IMEX(order={self.order})"
+        reason = _implicit.why_not_symmetric(domain, model)
+        if reason is not None:
+            raise ValueError(f"{who}: {reason}")
+        if self.adaptive:
+            raise ValueError(f"{who}: adaptive steps use the transforms (the square Lattice with one rate per "
+                             f"species); on the {domain.description} give a fixed dt")
+        if dynamic or sources:
+            super().check(Lattice(), model, dynamic=dynamic, sources=sources)  # the same messages
+
+    def make_advance(self, model, domain, dt, bounds, shape):
+        if _diagonal(domain, model):
+            return super().make_advance(model, domain, dt, bounds, shape)
+        return self._advance_by_cg(model, domain, dt, bounds, shape)
+
+    def _advance_by_cg(self, model, domain, dt, bounds, shape):
+        """The same schemes in cell space, each implicit stage solved by conjugate gradients."""
+        solve, apply = _implicit.make_solver(domain, shape)
+        barrier = bounds if isinstance(bounds, Barrier) else None
+        ndim = domain.ndim
+
+        def advance(acting, x, h=dt):
+            lower, upper = per_species(acting.lower, ndim), per_species(acting.upper, ndim)
+
+            def reaction(y):
+                r = acting.reaction(y)
+                return jnp.stack([r[i] + (barrier.terms(y[i], lower[i], upper[i]) if barrier is not None else 0.0)
+                                  for i in range(y.shape[0])])
+
+            def limit(y):
+                return jnp.clip(y, lower, upper) if bounds == "clip" else y
+
+            nx = reaction(x)
+            if self.order == 1:  # (1 - h L) x1 = x + h N(x)
+                return solve(acting, x + h * nx, h, x)
+            g, d = _ARS_GAMMA, _ARS_DELTA
+            u1 = solve(acting, x + h * g * nx, g * h, x)
+            n1 = reaction(limit(u1))
+            rhs = x + (1.0 - g) * h * apply(acting, u1) + h * (d * nx + (1.0 - d) * n1)
+            return solve(acting, rhs, g * h, u1)
+
+        return advance
 
     def coefficients(self, z, dt):
         if self.order == 1:
