@@ -18,6 +18,7 @@ import os
 import stat
 import struct
 import tempfile
+import tokenize
 import warnings
 import zipfile
 import zlib
@@ -369,7 +370,8 @@ BOMB_RATIO = 200  # ... that expands more than this from its compressed size is 
 # what a broken archive raises inside zipfile, zlib and numpy (flipped bytes give "Bad CRC-32",
 # a truncated member EOFError, a lying header TypeError / IndexError / struct.error)
 READ_ERRORS = (KeyError, OSError, ValueError, EOFError, TypeError, IndexError, AttributeError, OverflowError,
-               MemoryError, UnicodeError, json.JSONDecodeError, zipfile.BadZipFile, zlib.error, struct.error)
+               MemoryError, UnicodeError, SyntaxError, json.JSONDecodeError, zipfile.BadZipFile, zlib.error,
+               struct.error, tokenize.TokenError)  # a garbled .npy header fails NumPy's literal parser
 
 
 def check_regular_file(path, what: str) -> Path:
