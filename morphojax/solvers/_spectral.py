@@ -65,7 +65,23 @@ def _rate_vector(model):
 
 
 class _TransformSolver(AbstractSolver):
-    """Shared by ETDRK and IMEX: where they run, and the step's plumbing."""
+    """Shared by ETDRK and IMEX: their settings, where they run, and the step's plumbing."""
+
+    order: int = eqx.field(static=True)
+    rtol: float | None = eqx.field(static=True)  # None: a fixed step
+    atol: float | None = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)  # attempts of an adaptive run, at most
+
+    def _configure(self, orders: tuple, order, rtol, atol, max_steps) -> None:
+        """Check and set the settings (from a subclass's __init__); only order 2 has an
+        embedded estimate for adaptive steps."""
+        if order not in orders:
+            allowed = ", ".join(map(str, orders[:-1])) + f" or {orders[-1]}"
+            raise ValueError(f"{self.name}.order must be {allowed} (got {order!r})")
+        self.order = int(order)
+        self.rtol, self.atol = _check_tolerances(self.name, self.order, (2,), rtol, atol)
+        check_count(max_steps, f"{self.name}.max_steps", "attempted steps", low=1)
+        self.max_steps = int(max_steps)
 
     def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
         who = f"solver={self.name}(order={self.order})"
@@ -163,19 +179,9 @@ class ETDRK(_TransformSolver):
     `_step.make_attempt` for the norm), and at most `max_steps` attempts are made.
     """
 
-    order: int = eqx.field(static=True)
-    rtol: float | None = eqx.field(static=True)
-    atol: float | None = eqx.field(static=True)
-    max_steps: int = eqx.field(static=True)
-
     def __init__(self, order: int = 2, *, rtol: float | None = None, atol: float | None = None,
                  max_steps: int = 100_000):
-        if order not in (1, 2, 4):
-            raise ValueError(f"ETDRK.order must be 1, 2 or 4 (got {order!r})")
-        self.order = int(order)
-        self.rtol, self.atol = _check_tolerances("ETDRK", self.order, (2,), rtol, atol)
-        check_count(max_steps, "ETDRK.max_steps", "attempted steps", low=1)
-        self.max_steps = int(max_steps)
+        self._configure((1, 2, 4), order, rtol, atol, max_steps)
 
     def coefficients(self, z, dt):
         if self.order == 1:
@@ -227,19 +233,9 @@ class IMEX(_TransformSolver):
     as for `ETDRK`.
     """
 
-    order: int = eqx.field(static=True)
-    rtol: float | None = eqx.field(static=True)
-    atol: float | None = eqx.field(static=True)
-    max_steps: int = eqx.field(static=True)
-
     def __init__(self, order: int = 2, *, rtol: float | None = None, atol: float | None = None,
                  max_steps: int = 100_000):
-        if order not in (1, 2):
-            raise ValueError(f"IMEX.order must be 1 or 2 (got {order!r})")
-        self.order = int(order)
-        self.rtol, self.atol = _check_tolerances("IMEX", self.order, (2,), rtol, atol)
-        check_count(max_steps, "IMEX.max_steps", "attempted steps", low=1)
-        self.max_steps = int(max_steps)
+        self._configure((1, 2), order, rtol, atol, max_steps)
 
     def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
         """The transforms where they apply; conjugate gradients on other symmetric operators."""
