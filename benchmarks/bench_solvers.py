@@ -179,10 +179,13 @@ LADDER = (4, 16, 64)
 
 def eligible(experiment):
     """None if every phase can run with the transform solvers, else the reason."""
+    import jax
     import morphojax as mj
     for p in experiment.phases:
         try:
-            mj.ETDRK(1).check(p.domain, p.model, dynamic=p.growth is not None, sources=p.sources)
+            shape = tuple(experiment.initial.capacity or experiment.initial.shape)
+            fields = jax.ShapeDtypeStruct((p.model.n_species,) + shape, "float32")
+            mj.ETDRK(1).check(p.domain, p.model, dynamic=p.growth is not None, sources=p.sources, fields=fields)
         except ValueError as err:
             return str(err).split(": ", 1)[-1].split(";")[0]
     return None

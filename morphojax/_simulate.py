@@ -103,7 +103,7 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
         raise ValueError(f"until must be None or mj.SteadyState(tol=...) (got {until!r})")
     sources = tuple(sources or ())
     if isinstance(model, AbstractModel):
-        solver.check(domain, model, dynamic=cfg.dynamic, sources=sources)
+        solver.check(domain, model, dynamic=cfg.dynamic, sources=sources, fields=getattr(state, "fields", None))
     _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt, solver)
     if (growth is not None or sources) and key is None:
         raise ValueError("key is required when growth or sources are used (they draw random numbers)")

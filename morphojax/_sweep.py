@@ -125,7 +125,8 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         raise ValueError("sweep: growth needs a state with room to grow: State.from_arrays(..., capacity=(rows, cols)) "
                          "or shape=..., capacity=... for per-member starts")
     solver = as_solver(solver)
-    solver.check(lattice, model, dynamic=growth is not None or probe.growable, sources=tuple(sources or ()))
+    solver.check(lattice, model, dynamic=growth is not None or probe.growable, sources=tuple(sources or ()),
+                 fields=probe.fields)
     _validate_members(model, growth, dt, values, names, probe, steps, lattice, check_dt and isinstance(solver, Euler))
     spec = species_index(probe.names, species)
 

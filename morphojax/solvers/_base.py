@@ -17,6 +17,10 @@ from __future__ import annotations
 import abc
 
 import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ..models import AbstractModel
 
 
 class AbstractSolver(eqx.Module):
@@ -34,8 +38,9 @@ class AbstractSolver(eqx.Module):
         return False
 
     @abc.abstractmethod
-    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
-        """Raise a ValueError, saying what to use instead, where this solver cannot run."""
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
+        """Raise a ValueError, saying what to use instead, where this solver cannot run
+        (`fields`, or anything with their shape and dtype: the state it will step)."""
 
     @abc.abstractmethod
     def check_dt(self, domain, dt, model) -> None:
@@ -57,11 +62,22 @@ class Euler(AbstractSolver):
     def order(self) -> int:
         return 1
 
-    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
         return None
 
     def check_dt(self, domain, dt, model) -> None:
         domain.check_dt(dt, model.max_diffusion())
+
+
+def rate_shape(model, fields=None) -> tuple:
+    """The shape of the diffusion rates a step uses: `model.diffusion()`'s, or, for a model
+    whose parameters follow the state (`Modulated`), that of `model.at(fields).diffusion()`,
+    worked out from `fields`' shape alone (a state-set rate may be a map where the model's
+    own is a number)."""
+    if fields is None or type(model).at is AbstractModel.at:
+        return tuple(jnp.shape(model.diffusion()))
+    struct = jax.ShapeDtypeStruct(tuple(jnp.shape(fields)), jnp.result_type(fields))
+    return tuple(jax.eval_shape(lambda x: model.at(x).diffusion(), struct).shape)
 
 
 def as_solver(solver) -> AbstractSolver:

@@ -23,15 +23,14 @@ CG_TOL = 1e-6  # relative residual in float32, about its rounding (1e-12 in floa
 CG_MAXITER = 1000
 
 
-def why_not_symmetric(domain, model) -> str | None:
-    """None where the conjugate-gradient solve applies, else the reason."""
+def why_not_symmetric(domain, rates_shape: tuple) -> str | None:
+    """None where the conjugate-gradient solve applies (for rates of `rates_shape`), else the reason."""
     if not isinstance(domain, (Lattice, HexLattice, Mesh)):
         return f"the {domain.description} is not a lattice or mesh"
     if getattr(domain, "follow", None) is not None:
         return ("a polarity that follows a reagent changes the operator within a step; give fixed angles, or use "
                 "solver=mj.Euler()")
-    maps = tuple(jnp.shape(model.diffusion()))[1:]
-    if getattr(domain, "maps", "flux") == "pointwise" and any(n != 1 for n in maps):
+    if getattr(domain, "maps", "flux") == "pointwise" and any(n != 1 for n in rates_shape[1:]):
         return "pointwise rate maps D(x) lap u are not symmetric: use maps='flux' or solver=mj.Euler()"
     return None
 

@@ -16,6 +16,7 @@ steps on a CPU, which is why a larger step must pay for them.
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from .._bounds import Barrier
@@ -23,7 +24,7 @@ from .._checks import check_count, check_finite, check_range
 from ..domains import Lattice
 from ..models import AbstractModel, per_species
 from . import _implicit
-from ._base import AbstractSolver
+from ._base import AbstractSolver, rate_shape
 from ._phi import phi
 
 
@@ -32,11 +33,16 @@ def _state_dependent(model) -> bool:
     return type(model).at is not AbstractModel.at
 
 
-def _diagonal(domain, model) -> bool:
+def _diagonal(domain, model, fields=None) -> bool:
     """Whether the transforms diagonalise the operator: a Lattice, isotropic, one rate per species."""
     if not isinstance(domain, Lattice) or (domain.polarised_cells and domain.anisotropic):
         return False
-    return all(n == 1 for n in tuple(jnp.shape(model.diffusion()))[1:])
+    return all(n == 1 for n in rate_shape(model, fields)[1:])
+
+
+def _fields_like(model, shape, dtype):
+    """A stand-in for the fields a step advances (their shape and dtype only)."""
+    return jax.ShapeDtypeStruct((model.n_species,) + tuple(shape), dtype)
 
 
 def reaction_and_limit(acting, bounds, ndim: int):
@@ -83,7 +89,7 @@ class _TransformSolver(AbstractSolver):
         check_count(max_steps, f"{self.name}.max_steps", "attempted steps", low=1)
         self.max_steps = int(max_steps)
 
-    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
         who = f"solver={self.name}(order={self.order})"
         if not isinstance(domain, Lattice):
             raise ValueError(f"{who} runs on the Lattice (1D, 2D or 3D), whose stencil the FFT or DCT diagonalises; the "
@@ -91,7 +97,7 @@ class _TransformSolver(AbstractSolver):
         if domain.polarised_cells and domain.anisotropic:
             raise ValueError(f"{who} needs isotropic diffusion: anisotropic links are not diagonal in the FFT/DCT "
                              "basis; use solver=mj.Euler()")
-        shape = tuple(jnp.shape(model.diffusion()))
+        shape = rate_shape(model, fields)
         if any(n != 1 for n in shape[1:]):
             raise ValueError(f"{who} needs one diffusion rate per species; {type(model).__name__} diffuses with a "
                              f"rate map of shape {shape}, which the FFT/DCT basis does not diagonalise: use "
@@ -237,12 +243,12 @@ class IMEX(_TransformSolver):
                  max_steps: int = 100_000):
         self._configure((1, 2), order, rtol, atol, max_steps)
 
-    def check(self, domain, model, *, dynamic: bool, sources: tuple) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
         """The transforms where they apply; conjugate gradients on other symmetric operators."""
-        if _diagonal(domain, model):
-            return super().check(domain, model, dynamic=dynamic, sources=sources)
+        if _diagonal(domain, model, fields):
+            return super().check(domain, model, dynamic=dynamic, sources=sources, fields=fields)
         who = f"solver=IMEX(order={self.order})"
-        reason = _implicit.why_not_symmetric(domain, model)
+        reason = _implicit.why_not_symmetric(domain, rate_shape(model, fields))
         if reason is not None:
             raise ValueError(f"{who}: {reason}")
         if self.adaptive:
@@ -252,7 +258,7 @@ class IMEX(_TransformSolver):
             super().check(Lattice(), model, dynamic=dynamic, sources=sources)  # the same messages
 
     def make_advance(self, model, domain, dt, bounds, shape):
-        if _diagonal(domain, model):
+        if _diagonal(domain, model, _fields_like(model, shape, dt.dtype)):
             return super().make_advance(model, domain, dt, bounds, shape)
         return self._advance_by_cg(model, domain, dt, bounds, shape)
 
