@@ -291,3 +291,14 @@ def test_imex_two_on_the_hexagonal_lattice_is_second_order():
                         domain=mj.Lattice(maps="pointwise"), solver=mj.IMEX(1))
         with pytest.raises(ValueError, match="ETDRK.*runs on the Lattice"):
             mj.simulate(model, state, 2, 0.5, domain=domain, solver=mj.ETDRK(1))
+
+
+def test_a_state_set_rate_map_is_refused_before_the_run():
+    """thesis-fig7.18's Modulated model sets U's rate from the state: a map, though the
+    model's own rates are numbers. The transforms refuse it by name, before compiling."""
+    import dataclasses
+
+    experiment = mj.preset("thesis-fig7.18", quick=True)
+    phases = tuple(dataclasses.replace(p, solver=mj.ETDRK(1)) for p in experiment.phases)
+    with pytest.raises(ValueError, match="rate map of shape"):
+        mj.run_experiment(dataclasses.replace(experiment, phases=phases), seed=0)
