@@ -8,10 +8,17 @@ import math
 import numpy as np
 
 
+MAX_ALONG = 10**5  # vertices along one direction of a built mesh
+
+
 def count(length, spacing, least):
     if not spacing > 0:
         raise ValueError(f"spacing must be > 0 (got {spacing})")
-    return max(least, int(round(length / spacing)))
+    n = length / spacing
+    if not n <= MAX_ALONG:  # a mesh of MAX_ALONG^2 vertices is already beyond what a run can hold
+        raise ValueError(f"spacing {spacing:g} puts {n:.3g} vertices along a length of {length:g}; at most "
+                         f"{MAX_ALONG} (use a larger spacing)")
+    return max(least, int(round(n)))
 
 
 def icosphere_arrays(subdivisions: int, radius: float = 1.0):
