@@ -330,9 +330,10 @@ def _cmd_render(args):
 
 def file_kind(path: Path) -> str:
     """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton", "potts" or "cells"."""
-    from morphojax._serialise import open_npz, read_metadata
+    from morphojax._serialise import check_regular_file, open_npz, read_metadata
 
-    with open_npz(path, "result") as data:
+    check_regular_file(path, "result")
+    with open_npz(path, ".npz") as data:
         names = set(data.files)
         meta = read_metadata(data, path) if "metadata" in names else {}
     if meta.get("format") == "morphojax-cells/1":
