@@ -69,7 +69,7 @@ class Target:
                 "lattice": list(self.field.shape), "pixels": list(self.pixels.shape)}
 
 
-PIXEL_BYTES = 64  # memory a photo's pixel costs in a fit (its float64 channels, normalised and resampled)
+PIXEL_BYTES = 32  # memory a photo's pixel costs in a fit (its float64 grey, normalised, resampled; the RGB decode)
 DEEP_MODES = {"I;16": 65535.0, "I;16B": 65535.0, "I;16L": 65535.0, "I;16N": 65535.0}  # 16-bit greys
 
 
