@@ -418,3 +418,41 @@ def test_sweep_files_round_trip_and_tampered_fields_are_refused(tmp_path):
         bad = _sweep_file(tmp_path / "bad.npz", changes, arrays)
         with pytest.raises(ValueError, match=rf"bad\.npz .*{match}"):
             mj.load_sweep(bad)
+
+
+# ---- 4 and 6. nothing silently changed; checked before the work, cleaned after it ------------
+def test_out_folder_and_unwritable_outputs_are_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    from morphojax.cli import main
+    from morphojax.cli._output import out_arg, picture_path
+
+    monkeypatch.chdir(tmp_path)
+    assert picture_path(out_arg("o/"), "ca") == Path("o") / "ca.png" and (tmp_path / "o").is_dir()
+    assert picture_path(out_arg("pic"), "ca") == Path("pic.png")
+    (tmp_path / "afile").write_text("")
+    sweep = ["sweep", "--model", "turing", "--vary", "ratio=4,5", "--shape", "8", "8", "--steps", "1"]
+    assert main(sweep + ["--out", "afile/s.png"]) == 2
+    assert "afile is a file, not a folder" in capsys.readouterr().err
+    fit = ["fit", str(tmp_path / "p.png"), "--model", "turing", "--json", "r.json"]
+    for extra, match in ((["--fixed", "ratio=-3"], r"--fixed: Turing.ratio .* must lie in \[0, \+inf\)"),
+                         (["--preview", "r.json"], "two outputs have the same path"),
+                         (["--preview", "afile/p.png"], "afile is a file")):
+        assert main(fit + extra) == 2, extra
+        assert __import__("re").search(match, capsys.readouterr().err), extra
+
+
+def test_files_get_the_umask_and_killed_writes_are_cleaned(tmp_path):
+    from morphojax._serialise import write_npz
+
+    old = os.umask(0o027)
+    try:
+        dead = tmp_path / ".r.999999999-abc.npz"  # a write whose process is gone
+        dead.write_bytes(b"half")
+        alive = tmp_path / f".r.{os.getppid()}-abc.npz"  # one still being written by a live process
+        alive.write_bytes(b"half")
+        path = write_npz(tmp_path / "r.npz", a=np.ones(3))
+        assert (path.stat().st_mode & 0o777) == 0o640
+        assert not dead.exists() and alive.exists()
+    finally:
+        os.umask(old)
+    with pytest.raises(ValueError, match="is a file, not a folder"):
+        write_npz(path / "x.npz", a=np.ones(1))
