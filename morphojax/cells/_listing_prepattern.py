@@ -93,7 +93,7 @@ class _Prepattern:
         rows = read_shape_file(self.listing.directory, command.file, lambda why: self.fail(command.line, why))
         cells = [(-r, c) for r, text in enumerate(rows) for c, ch in enumerate(text) if ch.isalpha()]
         if not cells:
-            self.fail(command.line, f"the shape file {str(path)!r} holds no letter (each letter is a cell)")
+            self.fail(command.line, f"the shape file {command.file!r} holds no letter (each letter is a cell)")
         cells.sort()  # lowest row first (y = -row), then left to right
         xy = np.array([(c * SPACING, y * SPACING) for y, c in cells], float)
         xy -= (xy.min(axis=0) + xy.max(axis=0)) / 2

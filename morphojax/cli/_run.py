@@ -19,7 +19,6 @@ their own files (see `morphojax.presets`).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import shutil
 import sys

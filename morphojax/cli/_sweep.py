@@ -17,7 +17,6 @@ import argparse
 import math
 import re
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 

@@ -40,8 +40,6 @@ is not; a scalar field's gradient or a coordinate axis gives t directly.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
