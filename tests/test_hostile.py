@@ -367,6 +367,9 @@ def test_listing_reads_only_its_own_folder(tmp_path):
     assert mj.load_listing(inside, folder=tmp_path).prepattern(jax.random.key(0)).count == 3
     with pytest.raises(ValueError, match="has no folder"):
         mj.load_listing(inside).prepattern(jax.random.key(0))
+    (tmp_path / "blank.txt").write_text("  \n")
+    with pytest.raises(ValueError, match="'blank.txt' holds no letter"):
+        mj.load_listing('define chemical R\ncreate shape "blank.txt"\n', folder=tmp_path).prepattern(jax.random.key(0))
     os.mkfifo(tmp_path / "pipe.txt")
     (tmp_path / "zero.txt").symlink_to("/dev/zero")
     (tmp_path / "big.txt").write_bytes(b"X" * (2 << 20))
