@@ -8,6 +8,7 @@ compiled code then reports blow-ups itself, see `_simulate`).
 from __future__ import annotations
 
 import math
+import operator
 import os
 
 import numpy as np
@@ -175,13 +176,19 @@ def check_shape(shape, name: str, *, ndim=None) -> tuple[int, ...]:
         raise ValueError(f"{name} must have {ndim} entries (got {shape!r})")
     out = []
     for s in items:
-        if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer, float, np.floating)):
+        if isinstance(s, (bool, np.bool_)) or getattr(s, "dtype", None) == bool:
             raise ValueError(f"{name} must hold positive whole numbers (got {shape!r})")
-        if isinstance(s, (float, np.floating)) and not (math.isfinite(s) and float(s).is_integer()):
-            raise ValueError(f"{name} must hold whole numbers, not {s!r} (got {shape!r})")
-        if int(s) < 1:
+        try:
+            size = operator.index(s)  # ints, NumPy integers, 0-d integer arrays
+        except TypeError:
+            if not isinstance(s, (float, np.floating)):
+                raise ValueError(f"{name} must hold positive whole numbers (got {shape!r})") from None
+            if not (math.isfinite(s) and float(s).is_integer()):
+                raise ValueError(f"{name} must hold whole numbers, not {s!r} (got {shape!r})") from None
+            size = int(s)
+        if size < 1:
             raise ValueError(f"{name} must hold positive sizes (got {shape!r})")
-        out.append(int(s))
+        out.append(size)
     return tuple(out)
 
 
