@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from ._checks import default_float, is_concrete
+from ._checks import STEP_COUNTER_MAX, default_float, is_concrete
 
 _DEFAULT_NAMES = "abcdefghijklmnopqrstuvwxyz"
 
@@ -56,6 +56,9 @@ class State(eqx.Module):
                              f"(got {fields.shape})")
         self.fields = fields
         self.size = jnp.asarray(fields.shape[1:] if size is None else size, dtype=jnp.int32)
+        if isinstance(step, (int, np.integer)) and not 0 <= int(step) <= STEP_COUNTER_MAX:
+            raise ValueError(f"State.step must lie in [0, {STEP_COUNTER_MAX}], what the int32 step counter holds "
+                             f"(got {step})")
         self.step = jnp.asarray(step, dtype=jnp.int32)
         self.time = jnp.asarray(time, dtype=fields.dtype)
         if names is None:
