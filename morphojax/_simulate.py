@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._bounds import Barrier, bounds_policy
-from ._checks import as_float_array, check_finite, check_range, is_concrete
+from ._checks import as_float_array, check_finite, check_range, check_step_counter, is_concrete
 from .domains import as_domain
 from ._loop import drive
 from .models import AbstractModel, per_species
@@ -43,6 +43,7 @@ def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt, 
         raise ValueError(f"state must be a morphojax State (got {type(state).__name__})")
     if not isinstance(steps, (int, np.integer)) or isinstance(steps, bool) or steps < 0:
         raise ValueError(f"steps must be a non-negative integer (got {steps!r})")
+    check_step_counter(state.step, steps)
     if model.n_species != state.n_species:
         raise ValueError(
             f"{type(model).__name__} evolves {model.n_species} species {model.species} but the state has "

@@ -100,7 +100,9 @@ def test_states_of_any_spatial_shape():
     with pytest.raises(ValueError, match="1 sizes"):
         state.with_capacity((10, 10))
     with pytest.raises(ValueError, match="2 spatial axes"):
-        mj.simulate(mj.Turing(), state.rename(("a", "b")), 3, 0.01)
+        mj.simulate(mj.Turing(), state.rename(("a", "b")), 3, 0.01, stencil="nine-point")
+    with pytest.raises(ValueError, match="growth is not supported on the three-point stencil"):
+        mj.simulate(mj.Turing(), state.rename(("a", "b")), 3, 0.01)  # 1D runs on a 1D lattice, which does not grow
     batched = jax.tree_util.tree_map(lambda x: jnp.stack([x, x]), state)
     assert batched.n_species == 2 and batched.capacity == (8,)
     with pytest.raises(ValueError, match="batched"):

@@ -458,3 +458,9 @@ def test_files_get_the_umask_and_killed_writes_are_cleaned(tmp_path):
         os.umask(old)
     with pytest.raises(ValueError, match="is a file, not a folder"):
         write_npz(path / "x.npz", a=np.ones(1))
+
+
+def test_simulate_refuses_steps_past_the_int32_step_counter():
+    state = mj.paper_state(jax.random.key(0), (6, 6))
+    with pytest.raises(ValueError, match="step counter within int32"):
+        mj.simulate(mj.Turing(), state, 2**31 + 5, 0.01)
