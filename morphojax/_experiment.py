@@ -162,9 +162,10 @@ def _phase_domain(domain, stencil, boundary):
     if domain is None:
         return as_domain(stencil=stencil, boundary=boundary)
     if isinstance(domain, Lattice) and (stencil is not None or boundary is not None):
+        # only the stencil and boundary are compared: a lattice's polarity or maps have no shorthand
         given = as_domain(stencil=domain.stencil if stencil is None else stencil,
                           boundary=domain.boundary if boundary is None else boundary)
-        if given != domain:
+        if (given.stencil, given.boundary) != (domain.stencil, domain.boundary):
             raise ValueError(f"Phase: domain {domain} and the shorthands stencil={stencil!r}, boundary={boundary!r} "
                              "disagree; give only domain=")
         return domain

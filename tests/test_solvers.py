@@ -302,3 +302,15 @@ def test_a_state_set_rate_map_is_refused_before_the_run():
     phases = tuple(dataclasses.replace(p, solver=mj.ETDRK(1)) for p in experiment.phases)
     with pytest.raises(ValueError, match="rate map of shape"):
         mj.run_experiment(dataclasses.replace(experiment, phases=phases), seed=0)
+
+
+def test_a_phase_with_a_polarised_lattice_takes_a_solver_by_replace():
+    """dataclasses.replace echoes a phase's stencil/boundary shorthands next to its domain;
+    a polarised lattice agrees with them (its polarity has no shorthand)."""
+    import dataclasses
+
+    phase = mj.preset("thesis-fig5.13-v", quick=True).phases[0]
+    changed = dataclasses.replace(phase, solver=mj.IMEX(1))
+    assert changed.domain == phase.domain and changed.solver == mj.IMEX(1)
+    with pytest.raises(ValueError, match="disagree"):
+        mj.Phase(phase.model, 10, 1.0, domain=phase.domain, stencil="five-point")
