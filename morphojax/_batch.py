@@ -49,11 +49,12 @@ _TRACES = {"batch": 0}  # times the batched program was traced (tests guard agai
 
 
 # ---- the batched program ---------------------------------------------------------------------
-def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, boundary, stencil, bounds, solver):
+def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, boundary, stencil, bounds, solver,
+                until=None):
     """One member (traced; vmapped by `_batch_program`): build its model, run, measure the last steps."""
     m, g, dt = member_model(model, growth, dt, values)
     kw = dict(stencil=stencil, bounds=bounds, growth=g, sources=sources, key=key, check_dt=False,
-              origin=state.step, solver=solver)
+              origin=state.step, solver=solver, until=until)
     mid, bad, overflow = run_status(m, state, steps - tail, dt, boundary, **kw)
     if tail == 0:
         return mid, bad, overflow, jnp.asarray(jnp.nan, mid.fields.dtype)
@@ -63,7 +64,7 @@ def _member_run(model, growth, sources, state, key, values, dt, *, steps, tail, 
 
 
 def _batch_program(model, growth, sources, state, keys, values, dt, *, state_axis, steps, tail, boundary, stencil,
-                   bounds, inner, lanes, out_sharding, solver=None):
+                   bounds, inner, lanes, out_sharding, solver=None, until=None):
     """A chunk of members: (fields, size, bad step, overflow, change), each with a leading
     member axis. With `lanes`, groups of `inner` members in lanes (`_lanes.run_group`), one
     group after another; else vmapped `inner` at a time (`lax.map` runs the sub-batches in
@@ -84,7 +85,8 @@ def _batch_program(model, growth, sources, state, keys, values, dt, *, state_axi
         out = tuple(a.reshape((size,) + a.shape[2:]) for a in out)
     else:
         def one(state, key, values):
-            final, bad, over, change = _member_run(model, growth, sources, state, key, values, dt, solver=solver, **kw)
+            final, bad, over, change = _member_run(model, growth, sources, state, key, values, dt, solver=solver,
+                                                   until=until, **kw)
             return final.fields, final.size, bad, over, change
 
         if inner >= size:
@@ -182,7 +184,7 @@ class BatchRun:
 
 
 def run_batched(model, growth, sources, starts, member_keys, values, dt, *, steps, tail, boundary, stencil, bounds,
-                batch_size, devices, vmap_size, progress, solver=None) -> BatchRun:
+                batch_size, devices, vmap_size, progress, solver=None, until=None) -> BatchRun:
     """Run every member of `values` ({name: (n,) array}) in chunks over `devices` (and hosts).
 
     `starts` gives the members' initial states (`chunk(idx, member_keys)`, `shared`, `state`,
@@ -196,7 +198,8 @@ def run_batched(model, growth, sources, starts, member_keys, values, dt, *, step
     lo, hi, per_host = _host_block(n, jax.process_index(), jax.process_count()) if hosts else (0, n, n)
     chunk = _chunk_size(batch_size, max(per_host, 1), int(np.prod(probe.fields.shape)), devs)
     euler = solver is None or isinstance(solver, Euler)
-    group = lane_count(probe.fields.dtype) if euler and lanes_apply(model, growth, sources, probe) else 0
+    plain = euler and until is None  # lanes step forward Euler for a fixed count
+    group = lane_count(probe.fields.dtype) if plain and lanes_apply(model, growth, sources, probe) else 0
     inner, lanes = _layout(vmap_size, devs, chunk, group)
     if lanes:  # whole groups (padded like the last chunk)
         chunk = -(-chunk // inner) * inner
@@ -204,7 +207,7 @@ def run_batched(model, growth, sources, starts, member_keys, values, dt, *, step
     host, sharding = _run_chunks(
         model, growth, sources, starts, member_keys, values, jnp.asarray(dt, probe.fields.dtype), devs, chunk, lo, hi,
         dict(steps=steps, tail=tail, boundary=boundary, stencil=stencil, bounds=bounds, inner=inner, lanes=lanes,
-             solver=solver),
+             solver=solver, until=until),
         progress)
     if hosts:
         host = _gather_hosts(host, n, per_host)

@@ -28,7 +28,7 @@ from . import _serialise
 from ._serialise import dumps, key_from_data, key_to_data, load_npz, save_npz
 from .models import AbstractModel
 from ._simulate import simulate
-from .solvers import as_solver
+from .solvers import SteadyState, as_solver
 from ._state import State
 from ._version import __version__
 
@@ -93,7 +93,9 @@ class Phase:
     capacity: reallocate the state to this (rows, cols) capacity before the phase, so a
         static phase runs on its own small lattice and only growing phases carry room.
     solver: how the phase steps (`mj.Euler()` by default; `mj.ETDRK(...)` or `mj.IMEX(...)`
-        for a phase without growth or sources on the square lattice, see `simulate`).
+        for a phase without growth or sources, see `simulate`).
+    until: a stopping rule (`mj.SteadyState(tol)`): the phase's run, and each of its pieces
+        between checkpoints and frames, stops once settled; the next phase starts from there.
     """
 
     model: AbstractModel
@@ -111,6 +113,7 @@ class Phase:
     capacity: tuple | None = None
     domain: Any = None
     solver: Any = None
+    until: Any = None
 
     def __post_init__(self):
         from ._growth import Growth, Source
@@ -128,6 +131,8 @@ class Phase:
         object.__setattr__(self, "sources", sources)  # a single Source is accepted as (Source,)
         object.__setattr__(self, "domain", _phase_domain(self.domain, self.stencil, self.boundary))
         object.__setattr__(self, "solver", as_solver(self.solver))
+        if self.until is not None and not isinstance(self.until, SteadyState):
+            raise ValueError(f"Phase.until must be None or mj.SteadyState(tol=...) (got {self.until!r})")
         if isinstance(self.domain, Lattice):  # the shorthands stay readable as the lattice's
             object.__setattr__(self, "stencil", self.domain.stencil)
             object.__setattr__(self, "boundary", self.domain.boundary)
@@ -206,7 +211,7 @@ class Experiment:
 jax.tree_util.register_dataclass(
     Phase, data_fields=["model", "growth", "sources", "domain"],
     meta_fields=["steps", "dt", "boundary", "stencil", "bounds", "add_species", "keep", "frames", "name", "capacity",
-                 "solver"])
+                 "solver", "until"])
 jax.tree_util.register_dataclass(
     Experiment, data_fields=["phases"], meta_fields=["name", "initial", "description", "figure", "show", "cmap"])
 
@@ -307,6 +312,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
             state = phase.prepare(state)
             origin = int(state.step) if is_concrete(state.step) else state.step
         kwargs = dict(domain=phase.domain, bounds=phase.bounds, growth=phase.growth, solver=phase.solver,
+                      until=phase.until,
                       sources=phase.sources, key=jax.random.fold_in(root, i + 1), origin=origin, throw=throw,
                       progress=(phase.name or f"phase {i + 1}") if progress else False)
         marks = set(_frame_steps(phase)) if frames and phase.frames else set()

@@ -91,7 +91,8 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
                steps: int, cfg: Config, chunk: int, checkpoint: bool, save_every: int | None, save_fn,
                blocks=None, schedule=None, segments=None, clock=None, solver=None, until=None):
     """The compiled core. Returns (final State, bad step, overflow flag, saved frames or
-    None, the time a stopping rule ended the run or NaN).
+    None, the time a stopping rule ended the run or NaN, whether an adaptive run stopped
+    short of its time).
 
     With `blocks`, chunk j computes on the top-left block `blocks[schedule[j]]` (see
     `BlockLadder.chunk_blocks`); the chunk index comes from the scan, so it stays a real
@@ -165,7 +166,7 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     if rem:
         c = run_chunk(c, jnp.asarray(schedule[-1] if schedule is not None else 0, jnp.int32), rem)
     final = _crop_state(domain, c, names, time0, step_t, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, frames, _steady_time(c, dt)
+    return final, c.bad, c.overflow, frames, _steady_time(c, dt), jnp.asarray(False)
 
 
 def _steady_time(c: Carry, dt):
@@ -188,28 +189,32 @@ def _until_steady(step, domain, tol: float, dt, time0, step0):
 
 # Step-size control of the adaptive solvers: the next step is h (0.9 / error)^(1/2) (the
 # embedded estimate's local error is O(h^2)), changed by at most 5x up and 5x down per
-# attempt; a run whose step falls below 1e-9 of its span is marked as blown up there.
+# attempt; a run whose step falls below 1e-9 of its span stops there, `incomplete`.
 SAFETY, MAX_GROWTH, MAX_SHRINK, SMALLEST = 0.9, 5.0, 0.2, 1e-9
 
 
 def _integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names, growable):
     """Steps of varying size h until the time steps * dt is reached: each attempt is kept
     when its error norm is <= 1 and retried with a smaller h otherwise, inside the loop.
-    The state's step counts the steps kept; its time is time0 + the time reached, short of
-    the goal only if `solver.max_steps` attempts did not suffice."""
+    The state's step counts the steps kept; its time is time0 + the time reached. A run
+    whose `solver.max_steps` attempts do not reach the time, or whose step stalls, is
+    `incomplete` (the last element returned)."""
     attempt = make_attempt(model, domain, dt, cfg, solver, fields.shape[1:])
     span = steps * dt
     steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
     c = Carry(domain.carry(fields, size, False), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False), steady)
     zero = jnp.zeros((), dt.dtype)
 
+    def short(t):
+        return t < span * (1 - 1e-6)
+
     def running(s):
-        c, t, h, k = s
-        going = (t < span * (1 - 1e-6)) & (c.bad < 0)
+        c, t, h, stalled = s
+        going = short(t) & (c.bad < 0) & ~stalled
         return going if until is None else going & jnp.isnan(c.steady)
 
     def one(s):
-        c, t, h, k = s
+        c, t, h, stalled = s
         h_try = jnp.minimum(h, span - t)
         new, error = attempt(c, h_try)
         ok = error <= 1.0  # False for NaN: a non-finite step is retried smaller
@@ -218,15 +223,16 @@ def _integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cf
         if until is not None:
             change = jnp.max(jnp.abs(domain.interior(new.p) - domain.interior(c.p))) / h_try
             new = new._replace(steady=jnp.where(change < until.tol, time0 + t + h_try, c.steady))
-        stuck = (h_next < SMALLEST * span) & ~ok
+        stalled = stalled | ((h_next < SMALLEST * span) & ~ok)
         c = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, c)
-        c = c._replace(bad=jnp.where(stuck & (c.bad < 0), c.step, c.bad))
-        return c, jnp.where(ok, t + h_try, t), h_next, k + 1
+        return c, jnp.where(ok, t + h_try, t), h_next, stalled
 
-    c, t, _, _ = eqxi.while_loop(running, one, (c, zero, jnp.asarray(dt, dt.dtype), jnp.asarray(0, jnp.int32)),
+    c, t, _, _ = eqxi.while_loop(running, one, (c, zero, jnp.asarray(dt, dt.dtype), jnp.asarray(False)),
                                  max_steps=solver.max_steps, kind="checkpointed")
     final = State(domain.interior(c.p), c.size, c.step, time0 + t, names, growable)
-    return final, c.bad, c.overflow, None, _steady_time(c, dt)
+    stopped = jnp.asarray(False) if until is None else ~jnp.isnan(c.steady)
+    incomplete = short(t) & (c.bad < 0) & ~stopped
+    return final, c.bad, c.overflow, None, _steady_time(c, dt), incomplete
 
 
 def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg, checkpoint, segments, names,
@@ -252,7 +258,7 @@ def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg,
         sub = jax.lax.scan(body, c._replace(p=domain.block(c.p, *blocks[b])), None, length=repeat)[0]
         c = sub._replace(p=domain.unblock(c.p, sub.p))
     final = _crop_state(domain, c, names, time0, step0, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, None, _steady_time(c, dt)
+    return final, c.bad, c.overflow, None, _steady_time(c, dt), jnp.asarray(False)
 
 
 def default_chunk(steps: int, checkpoint) -> int:
@@ -275,7 +281,8 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
     origin = state.step if origin is None else jnp.asarray(origin, jnp.int32)
     pieces, rungs = [steps], None
     planned = cfg.dynamic and save_every is None and growth is not None and until is None
-    if progress and steps and is_concrete(state.fields, model, dt):
+    # an adaptive run is one piece: pieces would restart its step size at each cut
+    if progress and steps and is_concrete(state.fields, model, dt) and not getattr(solver, "adaptive", False):
         unit = save_every or chunk
         if planned and is_concrete(growth.rate) and growth.period_steps(dt) > 0:
             unit = growth.period_steps(dt)  # every piece then has the same segments
@@ -312,15 +319,15 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
                 growth, sources, names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
                 checkpoint=ckpt, save_every=save_every, save_fn=save_fn,
                 clock=None if len(pieces) == 1 else (state.time, state.step), solver=solver, until=until)
-            final, bad_i, over_i, frames, steady_i = run(blocks=blocks, schedule=schedule, segments=segments)
+            final, bad_i, over_i, frames, steady_i, short_i = run(blocks=blocks, schedule=schedule, segments=segments)
             if segments is not None and is_concrete(bad_i) and int(bad_i) >= 0:
                 # a planned run only marks the segment that blew up: the same piece again
                 # (same key, same result) on the chunked path, which replays the bad chunk
                 # one step at a time, pins down the step
                 per = max(1, min(chunk, int(n)))
                 blocks, schedule = plan.chunk_blocks(current, growth, int(n), dt, origin, per)
-                final, bad_i, over_i, frames, steady_i = run(blocks=blocks, schedule=schedule, segments=None)
-            status = status.merge(RunStatus(bad_i, over_i, steady_i, final.step - current.step))
+                final, bad_i, over_i, frames, steady_i, short_i = run(blocks=blocks, schedule=schedule, segments=None)
+            status = status.merge(RunStatus(bad_i, over_i, steady_i, final.step - current.step, short_i))
             if frames is not None:
                 frames_all.append(frames)
             current = final
@@ -329,6 +336,8 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
                 if is_concrete(status.nonfinite_step) and int(status.nonfinite_step) >= 0:
                     break
                 if is_concrete(status.steady_at) and not math.isnan(float(status.steady_at)):
+                    break
+                if is_concrete(status.incomplete) and bool(status.incomplete):
                     break
     finally:
         if bar is not None:

@@ -37,7 +37,7 @@ from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo
                      Modulated, Modulation, Morphogen, Reaction, Reinforcement, RuleReinforcement, Schnakenberg,
                      ThesisReinforcement, Turing)
 from ._state import State
-from .solvers import solver_from_dict, solver_to_dict
+from .solvers import solver_from_dict, solver_to_dict, until_from_dict, until_to_dict
 from ._version import __version__
 
 # the models a file can rebuild (a Reaction's file cannot: its function is code)
@@ -194,7 +194,7 @@ def phase_to_dict(phase) -> dict:
         "add_species": [list(p) for p in phase.add_species],
         "keep": list(phase.keep) if phase.keep is not None else None, "frames": phase.frames,
         "capacity": list(phase.capacity) if phase.capacity is not None else None,
-        "solver": solver_to_dict(phase.solver),
+        "solver": solver_to_dict(phase.solver), "until": until_to_dict(phase.until),
     })
 
 
@@ -213,7 +213,7 @@ def phase_from_dict(d: dict):
         keep=tuple(d["keep"]) if d.get("keep") is not None else None,
         frames=tuple(d["frames"]) if isinstance(d.get("frames"), list) else int(d.get("frames", 0)),
         name=d.get("name", ""), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
-        solver=solver_from_dict(d.get("solver")),
+        solver=solver_from_dict(d.get("solver")), until=until_from_dict(d.get("until")),
     )
 
 

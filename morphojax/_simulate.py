@@ -43,7 +43,8 @@ def _check_inputs_eager(model, domain, state, steps, dt, cfg, growth, check_dt, 
         raise ValueError(f"state must be a morphojax State (got {type(state).__name__})")
     if not isinstance(steps, (int, np.integer)) or isinstance(steps, bool) or steps < 0:
         raise ValueError(f"steps must be a non-negative integer (got {steps!r})")
-    check_step_counter(state.step, steps)
+    # an adaptive run may keep up to max_steps steps, whatever `steps` is
+    check_step_counter(state.step, max(steps, solver.max_steps) if solver.adaptive else steps)
     if model.n_species != state.n_species:
         raise ValueError(
             f"{type(model).__name__} evolves {model.n_species} species {model.species} but the state has "
@@ -104,7 +105,8 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
         raise ValueError(f"until must be None or mj.SteadyState(tol=...) (got {until!r})")
     sources = tuple(sources or ())
     if isinstance(model, AbstractModel):
-        solver.check(domain, model, dynamic=cfg.dynamic, sources=sources, fields=getattr(state, "fields", None))
+        solver.check(domain, model, dynamic=cfg.dynamic, sources=sources, fields=getattr(state, "fields", None),
+                     bounds=cfg.bounds)
     _check_inputs(model, domain, state, steps, dt, cfg, growth, check_dt, solver)
     if (growth is not None or sources) and key is None:
         raise ValueError("key is required when growth or sources are used (they draw random numbers)")
@@ -177,10 +179,12 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str |
         plan: how a growing lattice is computed: `BlockLadder()` (default: blocks that
             follow the active region) or `WholeCapacity()` (the reference); same results.
         solver: how each step advances reaction + diffusion: `Euler()` (default, the
-            papers' method, every domain), `ETDRK(order=1|2|4)` or `IMEX(order=1|2)`
-            (diffusion exact or implicit on the square lattice's own eigenbasis, so dt is
-            bounded by the reaction only; no growth, sources, rate maps or anisotropy).
-            The limits are still a clamp after every step.
+            papers' method, every domain), `ETDRK(order=1|2|4)` (diffusion exact on a
+            lattice's own eigenbasis, 1D to 3D, one rate per species, isotropic) or
+            `IMEX(order=1|2)` (diffusion implicit: by the same transforms, or by conjugate
+            gradients on hexagonal lattices, meshes, flux-form maps and fixed polarities).
+            Those two take dt from the reaction alone, and refuse growth, sources and
+            bounds="barrier". The limits are still a clamp after every step.
         until: a stopping rule, `SteadyState(tol=...)`: stop when the largest change per
             unit time falls below `tol`; `steps` is then the most steps taken.
 
@@ -237,4 +241,5 @@ def run_status(model, state, steps, dt, boundary=None, **kwargs) -> Run:
     """
     options = _options(kwargs, "run_status", tuple(k for k in _OPTIONS if k not in ("throw", "progress")))
     final, status, _ = _run(model, state, steps, dt, boundary, options, description="")
-    return Run(final, status.nonfinite_step, status.overflow, status.steady_at, status.steps_taken)
+    return Run(final, status.nonfinite_step, status.overflow, status.steady_at, status.steps_taken,
+               status.incomplete)

@@ -29,6 +29,9 @@ class RunStatus(eqx.Module):
             fields, so that it works under `jit` and `vmap`.
         steps_taken: the steps the run made: `steps` for a fixed step, fewer when a
             stopping rule ended it, and the accepted steps of an adaptive solver.
+        incomplete: bool, an adaptive run stopped short of its time: `max_steps` attempts
+            did not reach it, or its step fell below 1e-9 of the span (the state's time
+            says where it got to).
 
     Works under `vmap` (the attributes then carry the batch axes). The fields are JAX
     arrays even in an eager call: `bool(status.ok)` and `status.message()` give the Python view.
@@ -38,12 +41,14 @@ class RunStatus(eqx.Module):
     overflow: Array
     steady_at: Array
     steps_taken: Array
+    incomplete: Array
 
-    def __init__(self, nonfinite_step, overflow, steady_at=float("nan"), steps_taken=0):
+    def __init__(self, nonfinite_step, overflow, steady_at=float("nan"), steps_taken=0, incomplete=False):
         self.nonfinite_step = jnp.asarray(nonfinite_step)
         self.overflow = jnp.asarray(overflow)
         self.steady_at = jnp.asarray(steady_at)
         self.steps_taken = jnp.asarray(steps_taken)
+        self.incomplete = jnp.asarray(incomplete)
 
     @classmethod
     def healthy(cls) -> "RunStatus":
@@ -51,14 +56,15 @@ class RunStatus(eqx.Module):
 
     @property
     def ok(self) -> Array:
-        """True where the run neither blew up nor overflowed."""
-        return (self.nonfinite_step < 0) & ~self.overflow
+        """True where the run neither blew up, overflowed nor stopped short of its time."""
+        return (self.nonfinite_step < 0) & ~self.overflow & ~self.incomplete
 
     def merge(self, later: "RunStatus") -> "RunStatus":
         """This status followed by a later piece's: the first blow-up step, any overflow."""
         step = jnp.where(self.nonfinite_step >= 0, self.nonfinite_step, later.nonfinite_step)
         steady = jnp.where(jnp.isnan(self.steady_at), later.steady_at, self.steady_at)
-        return RunStatus(step, self.overflow | later.overflow, steady, self.steps_taken + later.steps_taken)
+        return RunStatus(step, self.overflow | later.overflow, steady, self.steps_taken + later.steps_taken,
+                         self.incomplete | later.incomplete)
 
     def message(self) -> str:
         """The status in words (concrete values)."""
@@ -67,6 +73,10 @@ class RunStatus(eqx.Module):
                     "Reduce dt, check the parameters, or use throw=False to get the state anyway.")
         if bool(self.overflow):
             return "growth exceeded the state's capacity during the run"
+        if bool(self.incomplete):
+            return (f"the adaptive run stopped short of its time after {int(self.steps_taken)} steps: its max_steps "
+                    "attempts did not reach it, or its step size fell below 1e-9 of the span. Loosen rtol/atol, "
+                    "raise max_steps, or use a fixed dt; throw=False returns the state where it got to.")
         return "ok"
 
     def check(self, state, throw: bool):
@@ -77,7 +87,7 @@ class RunStatus(eqx.Module):
         """
         if not throw:
             return state
-        if is_concrete(self.nonfinite_step, self.overflow):
+        if is_concrete(self.nonfinite_step, self.overflow, self.incomplete):
             if not bool(self.ok):
                 raise SimulationError(self.message())
             return state
@@ -85,6 +95,8 @@ class RunStatus(eqx.Module):
                               "the state became non-finite (NaN or Inf) during the run; "
                               "run eagerly (outside jit) to get the step, or pass throw=False")
         fields = eqx.error_if(fields, self.overflow, "growth exceeded the state's capacity during the run")
+        fields = eqx.error_if(fields, self.incomplete, "the adaptive run stopped short of its time; run eagerly for "
+                                                       "the details, or pass throw=False")
         return eqx.tree_at(lambda s: s.fields, state, fields)
 
 
@@ -93,7 +105,8 @@ class Run(eqx.Module):
 
     Unpacks as (state, nonfinite_step, overflow), as a tuple did before stopping rules;
     `steady_at` is the simulated time a stopping rule ended the run (NaN if it did not),
-    `steps_taken` the steps it made, and `run.status` the whole `RunStatus`.
+    `steps_taken` the steps it made, `incomplete` whether an adaptive run stopped short
+    of its time, and `run.status` the whole `RunStatus`.
     """
 
     state: object
@@ -101,6 +114,7 @@ class Run(eqx.Module):
     overflow: Array
     steady_at: Array
     steps_taken: Array
+    incomplete: Array
 
     def _fields(self):
         return (self.state, self.nonfinite_step, self.overflow)
@@ -116,4 +130,4 @@ class Run(eqx.Module):
 
     @property
     def status(self) -> RunStatus:
-        return RunStatus(self.nonfinite_step, self.overflow, self.steady_at, self.steps_taken)
+        return RunStatus(self.nonfinite_step, self.overflow, self.steady_at, self.steps_taken, self.incomplete)

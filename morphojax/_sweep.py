@@ -40,7 +40,8 @@ from .domains import Lattice
 from ._growth import Growth
 from ._initial import initial_state
 from .models import AbstractModel
-from .solvers import Euler, as_solver
+from ._bounds import bounds_policy
+from .solvers import Euler, SteadyState, as_solver, until_to_dict
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict, to_jsonable
 from ._state import State
 from ._sweep_members import DT, GROWTH_RATE, label, member_model, sweep_members, with_growth_rate
@@ -52,7 +53,7 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
           capacity=None, keys: str = "per-member", stencil: str = "nine-point", bounds="clip",
           growth: Growth | None = None, sources=(), species=-1, settle_steps: int | None = None,
           settle_tol: float = SETTLE_TOL, describe_members: bool = True, check_dt: bool = True,
-          progress: bool = False, solver=None) -> SweepResult:
+          progress: bool = False, solver=None, until=None) -> SweepResult:
     """Run `model` for every parameter set of `vary`, batched with `jax.vmap`; return a `SweepResult`.
 
     Args:
@@ -65,7 +66,9 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         state: one initial State shared by every member (identical initial conditions), or a
             State batched over the members (leading axis n), or None to give each member its
             own random start `initial_state(model, ..., shape, capacity)` (needs `key`, `shape`).
-        steps, dt, boundary, stencil, bounds, growth, sources, solver: as in `simulate`;
+        steps, dt, boundary, stencil, bounds, growth, sources, solver, until: as in `simulate`
+            (with `until`, each member stops on its own step, and no settle tail is run
+            unless `settle_steps` asks for one);
             `dt` is checked against the solver's criterion (for Euler the explicit limit) for
             every member unless `check_dt=False`. A solver other than Euler runs the members
             vmapped, not in lanes.
@@ -105,7 +108,8 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
     lattice = Lattice(stencil, boundary)
     boundary, stencil = lattice.boundary, lattice.stencil
     steps = int(steps)
-    tail = min(steps, max(1, steps // 10)) if settle_steps is None else int(settle_steps)
+    # with a stopping rule the members stop on their own; a settle tail would restart them
+    tail = (0 if until is not None else min(steps, max(1, steps // 10))) if settle_steps is None else int(settle_steps)
     if not 0 <= tail <= steps:
         raise ValueError(f"sweep: settle_steps must lie in [0, steps={steps}] (got {settle_steps!r})")
     names, axes, values, _ = sweep_members(model, vary, growth, dt)
@@ -126,7 +130,9 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
                          "or shape=..., capacity=... for per-member starts")
     solver = as_solver(solver)
     solver.check(lattice, model, dynamic=growth is not None or probe.growable, sources=tuple(sources or ()),
-                 fields=probe.fields)
+                 fields=probe.fields, bounds=bounds_policy(bounds))
+    if until is not None and not isinstance(until, SteadyState):
+        raise ValueError(f"sweep: until must be None or mj.SteadyState(tol=...) (got {until!r})")
     _validate_members(model, growth, dt, values, names, probe, steps, lattice, check_dt and isinstance(solver, Euler))
     spec = species_index(probe.names, species)
 
@@ -136,11 +142,12 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
             else jax.vmap(lambda i: key)(jnp.arange(n))
     run = run_batched(model, growth, sources, starts, member_keys, values, dt, steps=steps, tail=tail,
                       boundary=boundary, stencil=stencil, bounds=bounds, batch_size=batch_size, devices=devices,
-                      vmap_size=vmap_size, progress=progress, solver=solver)
+                      vmap_size=vmap_size, progress=progress, solver=solver, until=until)
 
     config = {
         "model": model_to_dict(model), "steps": steps, "dt": to_jsonable(dt), "boundary": boundary,
         "stencil": stencil, "bounds": bounds_to_data(bounds), "solver": solver.to_dict(),
+        "until": until_to_dict(until),
         "growth": growth_to_dict(growth) if growth is not None else None,
         "sources": [source_to_dict(s) for s in sources], "settle_steps": tail, "settle_tol": settle_tol,
         "keys": keys, "seed": seed, "key_data": key_to_data(key), "shape": list(probe.shape),

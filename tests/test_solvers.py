@@ -2,6 +2,7 @@
 exactness on pure diffusion, gradients against finite differences, and the steady-state
 stopping rule. Float64 where numbers are compared closely."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -180,6 +181,13 @@ def test_gradient_through_a_stopping_rule_is_the_fixed_runs(turing_start):
     (lambda s: mj.ETDRK(3), "ETDRK.order must be 1, 2 or 4"),
     (lambda s: mj.IMEX(order=4), "IMEX.order must be 1 or 2"),
     (lambda s: mj.SteadyState(tol=0.0), "SteadyState.tol"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s, 2, 0.01, solver=mj.ETDRK(1), bounds="barrier"), "barrier"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), s, 2, 0.01, domain=mj.HexLattice(), solver=mj.IMEX(1),
+                           sources=[mj.Source("a", 1.0)], key=jax.random.key(0)), "sources add a fixed amount"),
+    (lambda s: mj.ETDRK(True), "ETDRK.order must be"),
+    (lambda s: mj.ETDRK(2, rtol=1e-3, atol=0.0), "ETDRK.atol"),
+    (lambda s: mj.simulate(mj.Turing(4.0, 3.0), eqx.tree_at(lambda t: t.step, s, jnp.asarray(2**31 - 1000, jnp.int32)),
+                           10, 0.01, solver=mj.ETDRK(2, rtol=1e-3)), "step counter within int32"),
 ])
 def test_refusals_name_what_to_use(call, message):
     state = mj.paper_state(jax.random.key(0), (10, 10))
@@ -314,3 +322,34 @@ def test_a_phase_with_a_polarised_lattice_takes_a_solver_by_replace():
     assert changed.domain == phase.domain and changed.solver == mj.IMEX(1)
     with pytest.raises(ValueError, match="disagree"):
         mj.Phase(phase.model, 10, 1.0, domain=phase.domain, stencil="five-point")
+
+
+def test_an_adaptive_run_short_of_its_time_says_so(turing_start):
+    """max_steps attempts that do not reach steps * dt: not ok, with a message, and raised
+    by simulate; the state's time says where it got to."""
+    model = mj.Turing(4.0, 3.0)
+    run = mj.run_status(model, turing_start, 10, 1.0, solver=mj.ETDRK(2, rtol=1e-3, max_steps=3))
+    assert bool(run.incomplete) and not bool(run.status.ok) and float(run.state.time) < 10.0
+    assert "stopped short of its time" in run.status.message()
+    with pytest.raises(mj.SimulationError, match="stopped short of its time"):
+        mj.simulate(model, turing_start, 10, 1.0, solver=mj.ETDRK(2, rtol=1e-3, max_steps=3))
+    solver = mj.ETDRK(2, rtol=1e-3, atol=1e-5, max_steps=77)
+    assert mj.solvers.solver_from_dict(solver.to_dict()) == solver
+
+
+def test_until_on_a_phase_and_a_sweep(turing_start):
+    """A phase and a sweep take a stopping rule: each member stops on its own step, with the
+    fields of its run alone; a phase records the rule in its file form."""
+    model, tol = mj.Turing(4.0, 3.0), 2e-3
+    until = mj.SteadyState(tol)
+    result = mj.sweep(model, {"dt": [0.05, 0.2]}, turing_start, steps=4000, dt=0.05, solver=mj.ETDRK(1),
+                      until=until)
+    for i, dt in enumerate((0.05, 0.2)):
+        alone = mj.simulate(model, turing_start, 4000, dt, solver=mj.ETDRK(1), until=until)
+        assert int(alone.step) < 4000
+        np.testing.assert_allclose(np.asarray(result.fields[i]), np.asarray(alone.fields), rtol=1e-6, atol=1e-6)
+    assert result.config["until"] == {"until": "steady-state", "tol": tol}
+    phase = mj.Phase(model, steps=4000, dt=0.2, solver=mj.ETDRK(1), until=until)
+    assert mj.Phase.from_dict(phase.to_dict()) == phase
+    with pytest.raises(ValueError, match="Phase.until"):
+        mj.Phase(model, steps=10, dt=0.01, until=1e-3)

@@ -38,7 +38,7 @@ class AbstractSolver(eqx.Module):
         return False
 
     @abc.abstractmethod
-    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None, bounds="clip") -> None:
         """Raise a ValueError, saying what to use instead, where this solver cannot run
         (`fields`, or anything with their shape and dtype: the state it will step)."""
 
@@ -62,7 +62,7 @@ class Euler(AbstractSolver):
     def order(self) -> int:
         return 1
 
-    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None, bounds="clip") -> None:
         return None
 
     def check_dt(self, domain, dt, model) -> None:

@@ -9,7 +9,8 @@ Kassam and Trefethen (SIAM J. Sci. Comput. 26, 2005) average the formula over a 
 of radius 1 around z. We tried it: in float32 it loses accuracy where |z| is near the
 radius, because the circle then passes close to 0 (phi_3 off by 4e-6 at z = -1.1). Here,
 instead, |z| < 2 takes the Taylor series sum_j z^j / (j + k)! (20 terms: the first
-omitted term is below 2^20 / 23! ~ 4e-17) and |z| >= 2 the formula with expm1, whose
+omitted term is below 2^20 / 21! ~ 2e-14 for k = 1, less for k = 2, 3) and |z| >= 2 the
+formula with expm1, whose
 subtraction is then benign. Both halves are real and in the working dtype, and the
 gradients are finite everywhere: each half only sees arguments it is accurate for.
 """

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ._base import AbstractSolver, Euler
 from ._spectral import ETDRK, IMEX
+from ._steady import SteadyState
 
 _SOLVERS = {"Euler": Euler, "ETDRK": ETDRK, "IMEX": IMEX}
 
@@ -21,4 +22,18 @@ def solver_from_dict(d: dict | None) -> AbstractSolver:
         raise ValueError(f"unknown solver {name!r} in the file; known: {', '.join(_SOLVERS)}")
     if name == "Euler":
         return Euler()
-    return _SOLVERS[name](order=int(d.get("order", 2)), rtol=d.get("rtol"), atol=d.get("atol"))
+    return _SOLVERS[name](order=int(d.get("order", 2)), rtol=d.get("rtol"), atol=d.get("atol"),
+                          max_steps=int(d.get("max_steps", 100_000)))
+
+
+def until_to_dict(until) -> dict | None:
+    return None if until is None else until.to_dict()
+
+
+def until_from_dict(d: dict | None):
+    """The stopping rule a file records (None: none)."""
+    if not d:
+        return None
+    if d.get("until") != "steady-state":
+        raise ValueError(f"unknown stopping rule {d.get('until')!r} in the file; known: 'steady-state'")
+    return SteadyState(tol=float(d["tol"]))

@@ -81,7 +81,7 @@ class _TransformSolver(AbstractSolver):
     def _configure(self, orders: tuple, order, rtol, atol, max_steps) -> None:
         """Check and set the settings (from a subclass's __init__); only order 2 has an
         embedded estimate for adaptive steps."""
-        if order not in orders:
+        if isinstance(order, bool) or order not in orders:
             allowed = ", ".join(map(str, orders[:-1])) + f" or {orders[-1]}"
             raise ValueError(f"{self.name}.order must be {allowed} (got {order!r})")
         self.order = int(order)
@@ -89,8 +89,9 @@ class _TransformSolver(AbstractSolver):
         check_count(max_steps, f"{self.name}.max_steps", "attempted steps", low=1)
         self.max_steps = int(max_steps)
 
-    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None, bounds="clip") -> None:
         who = f"solver={self.name}(order={self.order})"
+        _check_run(who, dynamic, sources, bounds)
         if not isinstance(domain, Lattice):
             raise ValueError(f"{who} runs on the Lattice (1D, 2D or 3D), whose stencil the FFT or DCT diagonalises; the "
                              f"{domain.description} has no such basis: use solver=mj.Euler() there")
@@ -102,17 +103,10 @@ class _TransformSolver(AbstractSolver):
             raise ValueError(f"{who} needs one diffusion rate per species; {type(model).__name__} diffuses with a "
                              f"rate map of shape {shape}, which the FFT/DCT basis does not diagonalise: use "
                              "solver=mj.Euler()")
-        if dynamic:
-            raise ValueError(f"{who} steps a fixed lattice: a growing state's active region changes size, which a "
-                             "fixed transform cannot diagonalise. Run growing phases with solver=mj.Euler() (an "
-                             "Experiment can give each phase its own solver)")
-        if sources:
-            raise ValueError(f"{who}: sources add a fixed amount per step, so their total would change with dt; "
-                             "run phases with sources with solver=mj.Euler()")
 
     def to_dict(self) -> dict:
         data = {"solver": self.name, "order": self.order}
-        return {**data, "rtol": self.rtol, "atol": self.atol} if self.adaptive else data
+        return {**data, "rtol": self.rtol, "atol": self.atol, "max_steps": self.max_steps} if self.adaptive else data
 
     def check_dt(self, domain, dt, model) -> None:
         # diffusion is exact (ETDRK) or implicit (IMEX): no diffusion limit. The reaction's
@@ -152,6 +146,21 @@ class _TransformSolver(AbstractSolver):
         return advance
 
 
+def _check_run(who: str, dynamic: bool, sources: tuple, bounds) -> None:
+    """What no transform or conjugate-gradient step supports, whatever the domain."""
+    if dynamic:
+        raise ValueError(f"{who} steps a fixed lattice: a growing state's active region changes size, which a "
+                         "fixed operator solve cannot follow. Run growing phases with solver=mj.Euler() (an "
+                         "Experiment can give each phase its own solver)")
+    if sources:
+        raise ValueError(f"{who}: sources add a fixed amount per step, so their total would change with dt; "
+                         "run phases with sources with solver=mj.Euler()")
+    if isinstance(bounds, Barrier):
+        raise ValueError(f"{who}: the barrier's rational terms are stiff and explicit in every solver, so they allow "
+                         "only Euler's barrier step (about 20x below clip's, leopard paper section 5.4), and a larger "
+                         "step can cross a limit without a NaN; use bounds='clip' or solver=mj.Euler()")
+
+
 def _check_tolerances(who: str, order: int, embedded: tuple, rtol, atol):
     """(rtol, atol) as floats or (None, None); an error where the order has no embedded pair."""
     if rtol is None and atol is None:
@@ -163,7 +172,7 @@ def _check_tolerances(who: str, order: int, embedded: tuple, rtol, atol):
     atol = 1e-6 if atol is None else atol
     for name, value in (("rtol", rtol), ("atol", atol)):
         check_finite(value, f"{who}.{name}")
-        check_range(value, f"{who}.{name}", low=0.0, low_open=name == "rtol")
+        check_range(value, f"{who}.{name}", low=0.0, low_open=True)  # atol 0 divides 0 by 0 on a zero species
     return float(rtol), float(atol)
 
 
@@ -231,8 +240,8 @@ class IMEX(_TransformSolver):
     x + F^-1[dt / (1 - z) F(R(x))] (2 transforms a step); order=2: the L-stable IMEX
     (2,2,2) Runge-Kutta scheme of Ascher, Ruuth and Spiteri (5 transforms). Unconditionally
     stable in diffusion; damps the fastest modes where ETDRK is exact. Runs where `ETDRK`
-    runs (the `Lattice`, one rate per species; conjugate gradients for other operators
-    are not implemented).
+    runs by the transforms, and by conjugate gradients on the other symmetric operators:
+    the hexagonal lattice, meshes, flux-form rate maps and fixed polarities (`_implicit`).
 
     Adaptive steps (order 2): with `rtol` (and `atol`, default 1e-6) the step size follows
     the difference from an IMEX1 step from the same state (two transforms more a step),
@@ -243,19 +252,18 @@ class IMEX(_TransformSolver):
                  max_steps: int = 100_000):
         self._configure((1, 2), order, rtol, atol, max_steps)
 
-    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None) -> None:
+    def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None, bounds="clip") -> None:
         """The transforms where they apply; conjugate gradients on other symmetric operators."""
         if _diagonal(domain, model, fields):
-            return super().check(domain, model, dynamic=dynamic, sources=sources, fields=fields)
+            return super().check(domain, model, dynamic=dynamic, sources=sources, fields=fields, bounds=bounds)
         who = f"solver=IMEX(order={self.order})"
+        _check_run(who, dynamic, sources, bounds)
         reason = _implicit.why_not_symmetric(domain, rate_shape(model, fields))
         if reason is not None:
             raise ValueError(f"{who}: {reason}")
         if self.adaptive:
-            raise ValueError(f"{who}: adaptive steps use the transforms (the square Lattice with one rate per "
-                             f"species); on the {domain.description} give a fixed dt")
-        if dynamic or sources:
-            super().check(Lattice(), model, dynamic=dynamic, sources=sources)  # the same messages
+            raise ValueError(f"{who}: adaptive steps use the transforms (a Lattice with one rate per species); on "
+                             f"the {domain.description} give a fixed dt")
 
     def make_advance(self, model, domain, dt, bounds, shape):
         if _diagonal(domain, model, _fields_like(model, shape, dt.dtype)):
