@@ -138,13 +138,17 @@ def test_steady_state_under_vmap_stops_each_member_on_its_own(turing_start):
     model, tol = mj.Turing(4.0, 3.0), 2e-3
 
     def stop(dt):
-        return mj.run_status(model, turing_start, 4000, dt, solver=mj.ETDRK(1), until=mj.SteadyState(tol)).steady_at
+        run = mj.run_status(model, turing_start, 4000, dt, solver=mj.ETDRK(1), until=mj.SteadyState(tol))
+        return run.steady_at, run.state.fields, run.state.step
 
     dts = jnp.asarray([0.05, 0.2])
-    batched = np.asarray(jax.vmap(stop)(dts))
-    alone = np.asarray([stop(dt) for dt in dts])
-    np.testing.assert_allclose(batched, alone, rtol=1e-6)
-    assert np.isfinite(batched).all() and batched[0] != batched[1]
+    batched = jax.vmap(stop)(dts)
+    for i, dt in enumerate(dts):  # a member frozen at its stop holds the fields of its run alone
+        at, fields, step = stop(dt)
+        np.testing.assert_allclose(float(batched[0][i]), float(at), rtol=1e-6)
+        np.testing.assert_allclose(np.asarray(batched[1][i]), np.asarray(fields), rtol=1e-5, atol=1e-5)
+        assert int(batched[2][i]) == int(step) < 4000
+    assert np.isfinite(np.asarray(batched[0])).all() and batched[0][0] != batched[0][1]
     never = mj.run_status(model, turing_start, 30, 0.05, solver=mj.ETDRK(1), until=mj.SteadyState(tol))
     assert np.isnan(float(never.steady_at)) and int(never.state.step) == 30
 
