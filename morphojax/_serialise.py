@@ -97,6 +97,9 @@ def model_to_dict(model: AbstractModel) -> dict:
 
 
 def model_from_dict(data: dict) -> AbstractModel:
+    """The model a plain-data dict describes (what `model_to_dict` and every result file
+    write): its "type" names the class, the other entries its parameters; a `Composite`
+    rebuilds its parts. A user's `Reaction` function cannot be rebuilt from data."""
     kind = data.get("type")
     if kind == "Composite":
         return Composite([model_from_dict(p) for p in data["parts"]], species=data.get("species"))

@@ -55,9 +55,11 @@ class RunStatus(eqx.Module):
         return cls(jnp.asarray(-1, jnp.int32), jnp.asarray(False))
 
     @property
-    def ok(self) -> Array:
-        """True where the run neither blew up, overflowed nor stopped short of its time."""
-        return (self.nonfinite_step < 0) & ~self.overflow & ~self.incomplete
+    def ok(self):
+        """True where the run neither blew up, overflowed nor stopped short of its time: a
+        Python bool for one eager run, an array under `jit` or for a batch (`vmap`)."""
+        ok = (self.nonfinite_step < 0) & ~self.overflow & ~self.incomplete
+        return bool(ok) if is_concrete(ok) and jnp.ndim(ok) == 0 else ok
 
     def merge(self, later: "RunStatus") -> "RunStatus":
         """This status followed by a later piece's: the first blow-up step, any overflow."""

@@ -76,7 +76,7 @@ def test_plans_agree(key, shape, capacity, steps):
 def test_run_status(key):
     state = mj.paper_state(key, (10, 10))
     healthy = mj.run_status(mj.Turing(4.0, 3.0), state, 20, 0.01)
-    assert isinstance(healthy, mj.Run) and bool(healthy.status.ok) and healthy.status.message() == "ok"
+    assert isinstance(healthy, mj.Run) and healthy.status.ok is True and healthy.status.message() == "ok"
     final, bad, overflow = healthy  # unpacks as before
     assert int(bad) == -1 and not bool(overflow)
     blown = mj.run_status(mj.Turing(4.0, 3.0), state, 300, 0.2, check_dt=False)
