@@ -195,7 +195,7 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str |
                    check_dt=check_dt, progress=progress, checkpoint=checkpoint, origin=origin, plan=plan,
                    solver=solver, until=until)
     final, status, _ = _run(model, state, steps, dt, boundary, options)
-    return status.check(final, throw)
+    return status.check(final, throw, start=state.step)
 
 
 def _save_state(s: State):
@@ -228,7 +228,7 @@ def rollout(model: AbstractModel, state: State, steps: int, dt, every: int, boun
     if isinstance(steps, (int, np.integer)) and every > steps:  # no snapshot would fall in the run
         raise ValueError(f"rollout.every must lie in [1, steps = {steps}] (got {every})")
     final, status, frames = _run(model, state, steps, dt, boundary, options, int(every), save or _save_state)
-    return status.check(final, options["throw"]), frames
+    return status.check(final, options["throw"], start=state.step), frames
 
 
 def run_status(model, state, steps, dt, boundary=None, **kwargs) -> Run:

@@ -68,10 +68,14 @@ class RunStatus(eqx.Module):
         return RunStatus(step, self.overflow | later.overflow, steady, self.steps_taken + later.steps_taken,
                          self.incomplete | later.incomplete)
 
-    def message(self) -> str:
-        """The status in words (concrete values)."""
+    def message(self, start=None) -> str:
+        """The status in words (concrete values); with `start`, the state's step when the
+        call began, a blow-up is also counted from the call's own first step."""
         if int(self.nonfinite_step) >= 0:
-            return (f"the state became non-finite (NaN or Inf) at step {int(self.nonfinite_step)}: the run blew up. "
+            where = f"step {int(self.nonfinite_step)}"
+            if start is not None and is_concrete(start):
+                where += f" (step {int(self.nonfinite_step) - int(start) + 1} of this call)"
+            return (f"the state became non-finite (NaN or Inf) at {where}: the run blew up. "
                     "Reduce dt, check the parameters, or use throw=False to get the state anyway.")
         if bool(self.overflow):
             return "growth exceeded the state's capacity during the run"
@@ -81,8 +85,9 @@ class RunStatus(eqx.Module):
                     "raise max_steps, or use a fixed dt; throw=False returns the state where it got to.")
         return "ok"
 
-    def check(self, state, throw: bool):
-        """`state` as it is, after raising `SimulationError` for a failed run when `throw`.
+    def check(self, state, throw: bool, start=None):
+        """`state` as it is, after raising `SimulationError` for a failed run when `throw`
+        (`start`: the state's step when the call began, for the message).
 
         Eagerly the error names the step; inside `jit` it becomes an `eqx.error_if` on the
         state's fields (a runtime error without the step).
@@ -91,7 +96,7 @@ class RunStatus(eqx.Module):
             return state
         if is_concrete(self.nonfinite_step, self.overflow, self.incomplete):
             if not bool(self.ok):
-                raise SimulationError(self.message())
+                raise SimulationError(self.message(start))
             return state
         fields = eqx.error_if(state.fields, self.nonfinite_step >= 0,
                               "the state became non-finite (NaN or Inf) during the run; "

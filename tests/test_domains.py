@@ -136,3 +136,11 @@ def test_models_name_their_parameters_one_way():
     assert float(both.replace(**{"1.diffusion": 3.0}).parts[1].diffusion()[0]) == 3.0
     for cls in (mj.Turing, mj.Bard, mj.GrayScott, mj.Reinforcement):
         assert "parameters" not in vars(cls) and "replace" not in vars(cls)  # final: nothing overridden
+
+
+def test_a_blow_up_is_counted_from_the_state_and_from_the_call(key):
+    state = mj.simulate(mj.Turing(4.0, 3.0), mj.paper_state(key, (10, 10)), 500, 0.01)
+    run = mj.run_status(mj.Turing(4.0, 3.0), state, 300, 0.2, check_dt=False)
+    bad = int(run.nonfinite_step)
+    with pytest.raises(mj.SimulationError, match=rf"at step {bad} \(step {bad - 500 + 1} of this call\)"):
+        mj.simulate(mj.Turing(4.0, 3.0), state, 300, 0.2, check_dt=False)
