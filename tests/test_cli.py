@@ -128,3 +128,23 @@ def test_bad_input_is_a_clear_error(tmp_path, capsys):
 def test_console_script_is_installed():
     res = subprocess.run(["morphojax", "presets"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0 and "leopard" in res.stdout
+
+
+def test_every_command_ends_with_a_json_line(tmp_path, capsys):
+    """presets and render close with a JSON line, as the other commands do; render draws a
+    3D lattice's fields as slices; mesh and listing take --no-progress and the one --quiet."""
+    from morphojax._serialise import write_npz
+
+    assert main(["presets"]) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert line["presets"] == len(mj.PRESETS) and sum(line["kinds"].values()) == len(mj.PRESETS)
+    volume = np.random.default_rng(0).random((6, 7, 8))
+    write_npz(tmp_path / "solid.npz", u=volume, v=volume, metadata=json.dumps({"kind": "solid"}))
+    assert main(["render", str(tmp_path / "solid.npz"), "--out", str(tmp_path / "solid.png")]) == 0
+    line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert line["image"] == str(tmp_path / "solid.png") and (tmp_path / "solid.png").stat().st_size > 0
+    for command in ("mesh", "listing"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = capsys.readouterr().out
+        assert "--no-progress" in text and "print only the JSON line" in text

@@ -39,7 +39,7 @@ def register(subparsers) -> None:
     p.add_argument("--texture", action="store_true", help="draw the interpolated texture instead of discs")
     p.add_argument("--list", action="store_true", help="list the shipped listings and exit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--quiet", action="store_true", help="no summary on stderr")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=run)
 
 

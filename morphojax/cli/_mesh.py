@@ -50,7 +50,8 @@ def register(subparsers) -> None:
     p.add_argument("--png", type=Path, default=None, help="picture (default: next to --out)")
     p.add_argument("--texture-size", type=int, default=1024,
                    help="side of the texture written with an .obj whose mesh has UVs (default 1024)")
-    p.add_argument("--quiet", action="store_true", help="no summary on stdout")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=run)
 
 
@@ -96,7 +97,8 @@ def run(args) -> int:
     limit = mesh.max_stable_dt(float(model.max_diffusion()))
     dt = args.dt if args.dt is not None else min(1.0, DT_SAFETY * limit)
     state = mesh_state(model, mesh, jax.random.key(args.seed))
-    final = mj.simulate(model, state, args.steps, dt, domain=mesh)
+    final = mj.simulate(model, state, args.steps, dt, domain=mesh,
+                        progress=False if args.no_progress or args.quiet else args.model)
     species = args.species if args.species is not None else final.names[-1]
     values = final.array(species)
     colours = mj.vertex_colours(values, cmap=args.cmap)

@@ -26,6 +26,8 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
+
 import morphojax as mj
 from morphojax.presets import lookup
 from morphojax.presets._automaton_outputs import default_scale, lattice_picture
@@ -62,25 +64,28 @@ def register(sub) -> None:
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("resume", help="continue a run from its .npz checkpoint")
-    p.add_argument("checkpoint", type=Path)
+    p.add_argument("checkpoint", type=Path, help="the .npz that `run --checkpoint-every` wrote")
     p.add_argument("--out", type=out_arg, default=None, help="output PNG (default: the checkpoint's name)")
-    p.add_argument("--frames", action="store_true")
-    p.add_argument("--scale", type=int, default=2)
-    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS")
-    p.add_argument("--no-progress", action="store_true")
-    p.add_argument("--gif", type=Path, default=None, metavar="F.gif")
+    p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
+    p.add_argument("--scale", type=int, default=2, help="pixels per lattice cell in the PNG")
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
+                   help="keep writing the checkpoint every STEPS steps")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--gif", type=Path, default=None, metavar="F.gif",
+                   help="also write the run's snapshots as an animation")
     p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=_cmd_resume)
 
     p = sub.add_parser("render", help="draw any .npz morphojax writes (run, sweep, automaton) as a PNG")
-    p.add_argument("result", type=Path)
+    p.add_argument("result", type=Path, help="a .npz written by run, resume, sweep, ca, listing or a Potts preset")
     p.add_argument("--species", default=None, help="species name (default: the experiment's choice, else the last)")
     p.add_argument("--cmap", default=None, help="inferno, viridis, gray, giraffe, ...")
     p.add_argument("--palette-from", type=Path, default=None, metavar="PHOTO",
                    help="colour with a photo's main colours instead (mj.Gradient.from_photo: dark = high)")
     p.add_argument("--palette-crop", default=None, metavar="X0,Y0,X1,Y1", help="the photo's region for --palette-from")
     p.add_argument("--scale", type=int, default=None, help="pixels per cell (default 2; automata as `ca` draws them)")
-    p.add_argument("--out", type=out_arg, required=True)
+    p.add_argument("--out", type=out_arg, required=True, help="output PNG")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=_cmd_render)
 
 
@@ -88,6 +93,10 @@ def register(sub) -> None:
 def _cmd_presets(args):
     width = min(TABLE_WIDTH, shutil.get_terminal_size((TABLE_WIDTH, 24)).columns)
     print("\n".join(presets_table(mj.PRESETS.values(), width)))
+    kinds = {}
+    for p in mj.PRESETS.values():
+        kinds[p.kind] = kinds.get(p.kind, 0) + 1
+    report({"presets": len(mj.PRESETS), "kinds": kinds}, "", True)  # the closing JSON line, as every command's
     return 0
 
 
@@ -287,6 +296,15 @@ def _cmd_resume(args):
 
 
 def _cmd_render(args):
+    t0 = time.perf_counter()
+    code = _render(args)
+    out = picture_path(args.out, args.result.stem)
+    report({"image": str(out), "result": str(args.result), "seconds": round(time.perf_counter() - t0, 3)},
+           f"wrote {out}", args.quiet)
+    return code
+
+
+def _render(args):
     if args.scale is not None:
         check_scale(args.scale, "--scale")
     out = picture_path(args.out, args.result.stem)
@@ -312,6 +330,12 @@ def _cmd_render(args):
 
         potts_picture(args.result, args.scale).save(out)
         return 0
+    if kind == "solid":
+        from morphojax.presets._solids import slices_picture
+
+        with np.load(args.result) as data:
+            slices_picture(np.asarray(data[args.species or "v"]), args.cmap or "viridis").save(out)
+        return 0
     if kind == "cells":
         cells, _ = mj.load_cells(args.result)
         mj.render_cells(cells, args.species, cmap=args.cmap or "inferno").save(out)
@@ -328,7 +352,8 @@ def _cmd_render(args):
 
 
 def file_kind(path: Path) -> str:
-    """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton", "potts" or "cells"."""
+    """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton", "potts", "cells"
+    or "solid" (a 3D lattice's fields)."""
     from morphojax._serialise import check_regular_file, open_npz, read_metadata
 
     check_regular_file(path, "result")
@@ -337,6 +362,8 @@ def file_kind(path: Path) -> str:
         meta = read_metadata(data, path) if "metadata" in names else {}
     if meta.get("format") == "morphojax-cells/1":
         return "cells"
+    if meta.get("kind") == "solid" and "v" in names:
+        return "solid"
     if "cells" in names:
         return "automaton"
     if "ids" in names and meta.get("kind") == "potts":

@@ -51,6 +51,18 @@ def isosurface(volume, level: float | None = None):
     return (verts - 1).astype(np.float32), faces.astype(np.int32)
 
 
+def slices_picture(volume, cmap=CMAP, title: str | None = None):
+    """Four evenly spaced slices of a 3D field along each axis (rows), in one colour range."""
+    volume = np.asarray(volume)
+    if volume.ndim != 3:
+        raise ValueError(f"slices_picture needs a 3D field (got shape {volume.shape})")
+    lo, hi = float(volume.min()), float(volume.max())
+    scale = max(1, 192 // max(volume.shape))
+    tiles = [mj.to_image(np.take(volume, i, axis=axis), cmap, vmin=lo, vmax=hi, scale=scale)
+             for axis in range(3) for i in np.linspace(0, volume.shape[axis] - 1, 4).round().astype(int)]
+    return mj.montage(tiles, 4, row_labels=["axis 0", "axis 1", "axis 2"], title=title)
+
+
 def _gray_scott_3d(seed, quick, out: Path, frames):
     size, steps, dt = (24, 1500, 1.0) if quick else (64, 6000, 1.0)
     shape = (size, size, size)
@@ -62,14 +74,7 @@ def _gray_scott_3d(seed, quick, out: Path, frames):
     seconds = time.perf_counter() - t0
     u, v = (np.asarray(f) for f in run.state.fields)
     lo, hi = float(v.min()), float(v.max())
-    scale = max(1, 192 // size)
-    tiles, labels = [], []
-    for axis in range(3):
-        for i in np.linspace(0, size - 1, 4).round().astype(int):
-            tiles.append(mj.to_image(np.take(v, i, axis=axis), CMAP, vmin=lo, vmax=hi, scale=scale))
-            labels.append(f"axis {axis} = {i}")
-    mj.montage(tiles, 4, row_labels=["axis 0", "axis 1", "axis 2"],
-               title=f"Gray-Scott in 3D (F {FEED}, k {KILL}), v, {size}^3, t = {steps * dt:g}").save(out)
+    slices_picture(v, CMAP, title=f"Gray-Scott in 3D (F {FEED}, k {KILL}), v, {size}^3, t = {steps * dt:g}").save(out)
     verts, faces = isosurface(v)
     ply = mj.write_ply(out.with_suffix(".ply"), verts, faces,
                        colour=mj.vertex_colours(np.full(len(verts), 0.75), CMAP, vmin=0.0, vmax=1.0),
