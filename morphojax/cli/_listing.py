@@ -14,6 +14,7 @@ seed gives the same cells.
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -29,7 +30,7 @@ QUICK_STEPS = 100  # --quick: at most this many iterations
 def register(subparsers) -> None:
     """Add the `listing` subcommand."""
     p = subparsers.add_parser("listing", help="run a thesis experiment file on the cell simulator",
-                              description=__doc__)
+                              description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("file", nargs="?", help="a listing file, or a shipped listing's name (A.1 ... A.18)")
     p.add_argument("--out", type=out_arg, default=None, help="picture (default out/NAME.png); .npz and .svg beside it")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the listing's `use seed`, else 0)")

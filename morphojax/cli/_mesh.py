@@ -3,14 +3,16 @@
     morphojax mesh bunny.obj --model gray-scott --set feed=0.0545 --set kill=0.062 --steps 10000 --out bunny.ply
     morphojax mesh sphere --model turing --set ratio=12 --set scale=3 --set lower_b=3 --out spots.ply
 
-FILE is an OBJ, PLY, STL or OFF file (read with trimesh), or one of the primitives
-"sphere", "torus", "capsule" (sized so an edge is about one unit). Writes the mesh with
+FILE is an OBJ, PLY, STL or OFF file (PLY read with trimesh, the others by morphojax),
+or one of the primitives "sphere", "torus", "capsule" (sized so an edge is about one
+unit). Writes the mesh with
 per-vertex colours of the shown species (PLY, or OBJ with `v x y z r g b` lines), a PNG
 picture next to it (or `--png`), and the per-vertex values of every species as an .npz.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 from pathlib import Path
 
@@ -31,7 +33,7 @@ DT_SAFETY = 0.8  # default dt = DT_SAFETY x the mesh's explicit-Euler limit
 def register(subparsers) -> None:
     """Add the `mesh` subcommand."""
     p = subparsers.add_parser("mesh", help="run a reaction-diffusion model on a triangle mesh; write a coloured mesh",
-                              description=__doc__)
+                              description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("file", help="a mesh file (.obj, .ply, .stl, .off) or sphere / torus / capsule")
     p.add_argument("--model", default="gray-scott", help="turing, bard, gray-scott, ... (default gray-scott)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
