@@ -148,3 +148,15 @@ def test_every_command_ends_with_a_json_line(tmp_path, capsys):
             main([command, "--help"])
         text = capsys.readouterr().out
         assert "--no-progress" in text and "print only the JSON line" in text
+
+
+def test_run_a_preset_on_a_larger_lattice(tmp_path, capsys):
+    """--shape sets the lattice (--scale only the picture); a growing preset is refused by name."""
+    assert main(["run", "fig4-r12", "--quick", "--shape", "20", "22", "--scale", "1", "--no-progress",
+                 "--out", str(tmp_path / "a.png"), "--quiet"]) == 0
+    state, meta = mj.load_npz(tmp_path / "a.npz")
+    assert state.shape == (20, 22) and Image.open(tmp_path / "a.png").size[:2] != (0, 0)
+    assert mj.load_experiment(meta).initial.shape == (20, 22)
+    capsys.readouterr()
+    assert main(["run", "leopard", "--shape", "60", "70", "--out", str(tmp_path / "b.png")]) == 2
+    assert "runs on its own lattice only: it grows" in capsys.readouterr().err

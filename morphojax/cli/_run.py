@@ -26,6 +26,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import jax
 import numpy as np
 
 import morphojax as mj
@@ -54,7 +55,10 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same result)")
     p.add_argument("--quick", action="store_true", help="a reduced version that runs in seconds")
     p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
-    p.add_argument("--scale", type=int, default=2, help="pixels per lattice cell in the PNG")
+    p.add_argument("--scale", type=int, default=2,
+                   help="pixels per lattice cell in the PNG (the picture's size; --shape sets the lattice's)")
+    p.add_argument("--shape", type=int, nargs=2, default=None, metavar=("ROWS", "COLS"),
+                   help="run the preset on a lattice of this size (static square-lattice presets only)")
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
                    help="write the .npz checkpoint every STEPS steps (resume with `morphojax resume`)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -67,7 +71,10 @@ def register(sub) -> None:
     p.add_argument("checkpoint", type=Path, help="the .npz that `run --checkpoint-every` wrote")
     p.add_argument("--out", type=out_arg, default=None, help="output PNG (default: the checkpoint's name)")
     p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
-    p.add_argument("--scale", type=int, default=2, help="pixels per lattice cell in the PNG")
+    p.add_argument("--scale", type=int, default=2,
+                   help="pixels per lattice cell in the PNG (the picture's size; --shape sets the lattice's)")
+    p.add_argument("--shape", type=int, nargs=2, default=None, metavar=("ROWS", "COLS"),
+                   help="run the preset on a lattice of this size (static square-lattice presets only)")
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
                    help="keep writing the checkpoint every STEPS steps")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -130,10 +137,42 @@ def _cmd_run(args):
     item = lookup(args.name)
     check_scale(args.scale, "--scale")
     if item.kind == "reaction-diffusion":  # sizes checked before anything runs
-        for exp in [mj.PRESETS[m].experiment(args.quick) for m in item.members] or [item.experiment(args.quick)]:
+        for exp in [_experiment(mj.PRESETS[m], args) for m in item.members] or [_experiment(item, args)]:
             check_experiment_size(exp, args.scale, args.frames or args.gif is not None)
     out = picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png", args.name)
     return RUNNERS[item.kind](item, args, out)
+
+
+def _experiment(item, args):
+    """The preset's experiment, on the lattice `--shape` asks for (when given)."""
+    exp = item.experiment(args.quick)
+    shape = getattr(args, "shape", None)
+    return exp if shape is None else with_shape(exp, tuple(shape))
+
+
+def with_shape(exp, shape: tuple):
+    """`exp` started on a (rows, cols) lattice of `shape`; refused, naming the reason, for an
+    experiment whose sizes are part of it (growth, capacities, parameter maps, source masks)."""
+    from morphojax._checks import check_shape
+
+    shape = check_shape(shape, "--shape")
+    if len(shape) != 2:
+        raise ValueError(f"--shape takes ROWS COLS (got {shape})")
+    reasons = []
+    if exp.initial.capacity is not None or any(p.capacity is not None or p.growth is not None for p in exp.phases):
+        reasons.append("it grows (its sizes are its growth schedule)")
+    if exp.initial.kind not in ("paper", "thesis", "constant", "uniform", "gray-scott"):
+        reasons.append(f"its initial state ({exp.initial.kind}) is drawn for its own lattice")
+    for p in exp.phases:
+        if any(getattr(leaf, "ndim", 0) >= 2 for leaf in jax.tree_util.tree_leaves(p.model)):
+            reasons.append("a model holds a parameter map of the preset's size")
+        if any(getattr(src, "mask", None) is not None for src in p.sources):
+            reasons.append("a source has a mask of the preset's size")
+        if getattr(p.domain, "polarity", None) is not None and getattr(p.domain.polarity, "ndim", 0) >= 2:
+            reasons.append("its polarity is a map of the preset's size")
+    if reasons:
+        raise ValueError(f"--shape: preset {exp.name!r} runs on its own lattice only: {'; '.join(dict.fromkeys(reasons))}")
+    return dataclasses.replace(exp, initial=dataclasses.replace(exp.initial, shape=shape))
 
 
 def check_experiment_size(exp, scale: int, frames: bool = False) -> None:
@@ -160,7 +199,7 @@ def _run_automaton(item, args, out: Path):
 def _run_reaction_diffusion(item, args, out: Path):
     if item.members:
         return _run_figure(item, args, out)
-    result = _run_one(item.experiment(args.quick), args, out.with_suffix(".npz"))
+    result = _run_one(_experiment(item, args), args, out.with_suffix(".npz"))
     _write_outputs(result, out, args)
     return 0
 
@@ -248,7 +287,7 @@ def _run_figure(item, args, out: Path):
     rows, described = [], []
     args.frames = True if item.snapshots else args.frames
     for member in item.members:
-        exp = mj.PRESETS[member].experiment(args.quick)
+        exp = _experiment(mj.PRESETS[member], args)
         result = _run_one(exp, args, out.with_name(f"{out.stem}_{member}.npz"))
         described.append({"member": member, "size": list(result.state.shape), **_descriptors(result)})
         shots = [s for _, s in result.frames if _can_show(s, exp)] if item.snapshots else []
