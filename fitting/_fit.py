@@ -49,7 +49,14 @@ DEGENERATE_PENALTY = 1e6  # added to a design point's loss when it is off the ta
 
 def _as_template(model, shape):
     if isinstance(model, str):
-        return mj.model_from_name(model)
+        try:
+            return mj.model_from_name(model)
+        except ValueError:  # the message names every name a fit takes, families and models alike
+            from ._families import FAMILIES  # _families builds on the core only; imported late as in _resolve
+
+            others = [n for n in mj.models.MODELS if n not in FAMILIES]
+            raise ValueError(f"unknown model {model!r}; a fit takes a family ({', '.join(FAMILIES)}), 'auto', "
+                             f"or a model name ({', '.join(others)})") from None
     if isinstance(model, (mj.AbstractModel, mj.Experiment, mj.YoungCA)):
         return model
     raise ValueError(f"model must be a model name, a model, an Experiment or a YoungCA (got {type(model).__name__})")

@@ -160,3 +160,11 @@ def test_run_a_preset_on_a_larger_lattice(tmp_path, capsys):
     capsys.readouterr()
     assert main(["run", "leopard", "--shape", "60", "70", "--out", str(tmp_path / "b.png")]) == 2
     assert "runs on its own lattice only: it grows" in capsys.readouterr().err
+
+
+def test_fit_names_every_model_it_takes(tmp_path, capsys):
+    Image.fromarray((np.random.default_rng(0).random((48, 48)) * 255).astype("uint8")).save(tmp_path / "x.png")
+    assert main(["fit", str(tmp_path / "x.png"), "--model", "nonsense", "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err
+    for name in ("anisotropic-turing", "young", "leopard", "'auto'", "brusselator"):
+        assert name in err
