@@ -168,3 +168,10 @@ def test_fit_names_every_model_it_takes(tmp_path, capsys):
     err = capsys.readouterr().err
     for name in ("anisotropic-turing", "young", "leopard", "'auto'", "brusselator"):
         assert name in err
+
+
+def test_render_draws_a_mesh_result(tmp_path):
+    """The .npz that `morphojax mesh` writes renders as its mesh, seen as mesh draws it."""
+    assert main(["mesh", "sphere", "--steps", "20", "--no-progress", "--quiet", "--out", str(tmp_path / "m.ply")]) == 0
+    assert main(["render", str(tmp_path / "m.npz"), "--out", str(tmp_path / "r.png"), "--quiet"]) == 0
+    assert Image.open(tmp_path / "r.png").size == Image.open(tmp_path / "m.png").size

@@ -380,6 +380,20 @@ def _render(args):
         mj.render_cells(cells, args.species, cmap=args.cmap or "inferno").save(out)
         return 0
     state, meta = mj.load_npz(args.result)
+    if state.ndim == 1 and "mesh" in meta:  # a `morphojax mesh` result: per-vertex values on its mesh
+        from morphojax.cli._mesh import load_mesh
+
+        try:
+            mesh = load_mesh(str(meta["mesh"]), float(meta.get("scale", 1.0)))
+        except (ValueError, OSError) as err:
+            raise ValueError(f"{args.result} holds values on the mesh {meta['mesh']!r}, which cannot be read here "
+                             f"({err}); `morphojax mesh` wrote its picture beside it") from None
+        if mesh.n_vertices != state.shape[0]:
+            raise ValueError(f"{args.result} holds {state.shape[0]} values; the mesh {meta['mesh']!r} now has "
+                             f"{mesh.n_vertices} vertices")
+        species = args.species if args.species is not None else state.names[-1]
+        mj.mesh_image(mesh, state.array(species), cmap=args.cmap or "inferno").save(out)
+        return 0
     args.scale = 2 if args.scale is None else args.scale
     check_picture(state.capacity, args.scale, f"the picture of {args.result}")
     if args.species is None and args.cmap is None and "experiment" in meta:
