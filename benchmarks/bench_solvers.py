@@ -192,8 +192,9 @@ def eligible(experiment):
 
 
 def presets_worker(names):
+    """Each preset's row as one JSON line on stdout as soon as it is measured (a long run
+    leaves the rows it finished)."""
     import morphojax as mj
-    out = {}
     for name in names:
         base = mj.preset(name)
         base = dataclasses.replace(base, phases=tuple(dataclasses.replace(p, frames=0) for p in base.phases))
@@ -214,11 +215,12 @@ def presets_worker(names):
                     break
                 best = {"factor": factor, "run": r, "compile": c, "desc": d.as_dict()}
             row[sname] = best
-        out[name] = row
-    print(json.dumps(out))
+        print(json.dumps({name: row}), flush=True)
 
 
-def presets():
+def presets(rows_file=None):
+    """The table of every eligible preset: measured now, or read from the JSON lines a
+    worker wrote (`--presets-from FILE`, for a run started on its own)."""
     import morphojax as mj
     names, skipped = [], []
     for name in sorted(mj.PRESETS):
@@ -228,9 +230,21 @@ def presets():
             continue  # automata, cells, Potts, figures of several experiments
         reason = eligible(exp)
         (skipped.append((name, reason)) if reason else names.append(name))
-    result = in_fresh_processes(Path(__file__), ["presets", *names], 1)[0]
+    if rows_file is None:
+        import os
+        import subprocess
+
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE.parent), str(HERE.parent / "tests"), str(HERE)]))
+        lines = subprocess.run([sys.executable, str(Path(__file__)), "--worker", "presets", *names],
+                               capture_output=True, text=True, env=env, check=False).stdout.splitlines()
+    else:
+        lines = Path(rows_file).read_text().splitlines()
+    result = {}
+    for line in lines:
+        if line.startswith("{"):
+            result.update(json.loads(line))
     rows = []
-    for name in names:
+    for name in [n for n in names if n in result]:
         row = result[name]
         e = row["Euler"]
         cells = [name, f"{e['run']:.2f}", f"{e['desc']['wavelength']:.2f} {e['desc']['pattern']} {e['desc']['spots']}"]
@@ -243,11 +257,16 @@ def presets():
         rows.append(cells)
     table = markdown_table(["preset", "Euler s", "Euler: wavelength class spots"] + list(solvers()), rows)
     skipped_text = "\n".join(f"- `{n}`: {why}" for n, why in skipped)
+    missing = [n for n in names if n not in result]
+    if missing:
+        skipped_text += "\n\nEligible but not measured in this run (it was stopped first): " + ", ".join(
+            f"`{n}`" for n in missing)
     return ("Every static lattice preset", "Each preset at its own size and simulated time; each solver at "
             f"{', '.join(f'{f}x' for f in LADDER)} the preset's Euler dt, the largest that keeps the same "
             "pattern (ascending, stopping at the first failure), with its compiled run time and the speed-up "
-            f"over Euler's. One process, {machine()}: the shared machine makes these single timings rough; the "
-            f"fig4-r40 section has medians.\n\n{table}\n\nNot eligible (they need Euler):\n{skipped_text}")
+            f"over Euler's. One process, {machine()}, sharing the two cores with the test suite: these single "
+            f"timings are rough; the fig4-r40 section has medians.\n\n{table}\n\nNot eligible (they need Euler):\n"
+            f"{skipped_text}")
 
 
 def write_section(title, body):
@@ -266,14 +285,16 @@ def main():
     ap.add_argument("--convergence", action="store_true")
     ap.add_argument("--fig4", action="store_true")
     ap.add_argument("--presets", action="store_true")
+    ap.add_argument("--presets-from", default=None, metavar="FILE",
+                    help="build the presets table from the JSON lines of a worker run on its own")
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
     if args.convergence:
         write_section(*convergence())
     if args.fig4:
         write_section(*fig4(args.repeats))
-    if args.presets:
-        write_section(*presets())
+    if args.presets or args.presets_from:
+        write_section(*presets(args.presets_from))
 
 
 if __name__ == "__main__":
