@@ -26,7 +26,8 @@ def test_presets_lists_the_papers_experiments(capsys):
     # one table of every kind, fitting a 100-column terminal
     for name in ("young-fig8", "dur-fig9", "life-glider"):
         assert name in out
-    assert max(len(line) for line in out.splitlines()) <= 100
+    table, closing = out.splitlines()[:-1], out.splitlines()[-1]
+    assert max(len(line) for line in table) <= 100 and json.loads(closing)["presets"] == len(mj.PRESETS)
     kinds = {p.kind for p in mj.PRESETS.values()}
     assert kinds >= {"reaction-diffusion", "automaton", "potts"}
     for kind in kinds:  # each kind has its section
