@@ -287,8 +287,8 @@ def test_initial_states_with_one_value_per_vertex():
         mj.gray_scott_state(key, (n,), seeded=[n])
     with pytest.raises(ValueError, match="capacity"):
         mj.paper_state(key, (n,), capacity=(50,))
-    with pytest.raises(ValueError, match=r"\(vertices,\) for a mesh"):
-        mj.paper_state(key, (2, 3, 4))
+    with pytest.raises(ValueError, match=r"\(vertices,\) for a mesh or \(depth, rows, cols\)"):
+        mj.paper_state(key, (2, 3, 4, 5))  # a 3D lattice's (depth, rows, cols) is a shape; four axes are not
 
 
 @pytest.mark.parametrize("bad, match", [
