@@ -54,33 +54,15 @@ def register(sub) -> None:
                         "goes next to it")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same result)")
     p.add_argument("--quick", action="store_true", help="a reduced version that runs in seconds")
-    p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
-    p.add_argument("--scale", type=int, default=2,
-                   help="pixels per lattice cell in the PNG (the picture's size; --shape sets the lattice's)")
     p.add_argument("--shape", type=int, nargs=2, default=None, metavar=("ROWS", "COLS"),
                    help="run the preset on a lattice of this size (static square-lattice presets only)")
-    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
-                   help="write the .npz checkpoint every STEPS steps (resume with `morphojax resume`)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--gif", type=Path, default=None, metavar="F.gif",
-                   help="also write the run's snapshots as an animation (.gif, or .mp4 with imageio[ffmpeg])")
-    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
+    _add_run_outputs(p)
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("resume", help="continue a run from its .npz checkpoint")
     p.add_argument("checkpoint", type=Path, help="the .npz that `run --checkpoint-every` wrote")
     p.add_argument("--out", type=out_arg, default=None, help="output PNG (default: the checkpoint's name)")
-    p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
-    p.add_argument("--scale", type=int, default=2,
-                   help="pixels per lattice cell in the PNG (the picture's size; --shape sets the lattice's)")
-    p.add_argument("--shape", type=int, nargs=2, default=None, metavar=("ROWS", "COLS"),
-                   help="run the preset on a lattice of this size (static square-lattice presets only)")
-    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
-                   help="keep writing the checkpoint every STEPS steps")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--gif", type=Path, default=None, metavar="F.gif",
-                   help="also write the run's snapshots as an animation")
-    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
+    _add_run_outputs(p)
     p.set_defaults(func=_cmd_resume)
 
     p = sub.add_parser("render", help="draw any .npz morphojax writes (run, sweep, automaton) as a PNG")
@@ -94,6 +76,19 @@ def register(sub) -> None:
     p.add_argument("--out", type=out_arg, required=True, help="output PNG")
     p.add_argument("--quiet", action="store_true", help="print only the JSON line")
     p.set_defaults(func=_cmd_render)
+
+
+def _add_run_outputs(p) -> None:
+    """The options `run` and `resume` share: what they write and how they report."""
+    p.add_argument("--frames", action="store_true", help="also write the intermediate snapshots")
+    p.add_argument("--scale", type=int, default=2,
+                   help="pixels per lattice cell in the PNG (the picture's size, not the lattice's)")
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="STEPS",
+                   help="write the .npz checkpoint every STEPS steps (resume with `morphojax resume`)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--gif", type=Path, default=None, metavar="F.gif",
+                   help="also write the run's snapshots as an animation (.gif, or .mp4 with imageio[ffmpeg])")
+    p.add_argument("--quiet", action="store_true", help="print only the JSON line")
 
 
 # ---- presets ---------------------------------------------------------------------------------
