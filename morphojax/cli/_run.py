@@ -28,6 +28,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from PIL import Image
 
 import morphojax as mj
 from morphojax.presets import lookup
@@ -288,18 +289,32 @@ def _run_figure(item, args, out: Path):
         shots = [s for _, s in result.frames if _can_show(s, exp)] if item.snapshots else []
         rows.append([mj.render_experiment(s, exp, scale=args.scale) for s in shots]
                     or [mj.render_experiment(result.state, exp, scale=args.scale)])
-    ncols = max(len(r) for r in rows)
-    images = [tile for r in rows for tile in r + [r[-1]] * (ncols - len(r))]
-    if item.col_labels:
-        ncols = len(item.col_labels)
-    row_labels = item.row_labels or [m.split("-")[-1] for m in item.members]
-    mj.montage(images, ncols, row_labels=list(row_labels), col_labels=list(item.col_labels or []) or None,
+    images, ncols, row_labels = figure_layout(item, rows)
+    mj.montage(images, ncols, row_labels=row_labels, col_labels=list(item.col_labels or []) or None,
                title=f"{item.name}: {item.figure}").save(out)
     report({"preset": item.name, "written": [str(out)], "members": list(item.members), "descriptors": described},
            f"{item.name}: {len(item.members)} runs; wrote {out}; "
            + ", ".join(f"{d['member']} {d['pattern']} ({d['spots']} spots, {d['holes']} holes)" for d in described),
            args.quiet)
     return 0
+
+
+def figure_layout(item, rows):
+    """(tiles, columns, row labels) of a figure's montage from its members' pictures `rows`
+    (one list per member). Each member is a row of its own when it shows snapshots or the
+    figure has no column labels, labelled `row_labels` or the last word of its name;
+    otherwise the members are tiles, `len(col_labels)` to a row, and only the figure's own
+    `row_labels` label the rows. Every tile is brought to the widest tile's width (nearest
+    neighbour, its aspect kept), so lattices drawn differently (a square lattice's cells
+    `scale` pixels wide, a hexagonal lattice's hexagons 8 x `scale`) come out the same size."""
+    width = max(t.width for r in rows for t in r)
+    rows = [[t if t.width == width else t.resize((width, max(1, round(t.height * width / t.width))),
+                                                 Image.NEAREST) for t in r] for r in rows]
+    ncols = max(len(r) for r in rows)
+    images = [tile for r in rows for tile in r + [r[-1]] * (ncols - len(r))]
+    if item.col_labels and not item.snapshots:  # one tile per member
+        return images, len(item.col_labels), list(item.row_labels) if item.row_labels else None
+    return images, len(item.col_labels or ()) or ncols, list(item.row_labels or [m.split("-")[-1] for m in item.members])
 
 
 def _descriptors(result) -> dict:
