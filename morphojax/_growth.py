@@ -111,13 +111,15 @@ class Growth(eqx.Module):
             return None
         return self.expansions(steps, dt, steps_done(state, origin))
 
-    def check_capacity(self, state, steps: int, dt, origin=None) -> None:
-        """Raise before the run if the state cannot hold all the expansions it will get."""
+    def check_capacity(self, state, steps: int, dt, origin=None, copies: int = 1) -> None:
+        """Raise before the run if the state cannot hold all the expansions it will get
+        (`copies`: rows and columns one expansion adds, see `expand`)."""
         n = self.due(state, steps, dt, origin)
         if n is None or not is_concrete(state.size):
             return
         h, w = state.shape
         cap = state.capacity
+        n = n * copies
         if h + n > cap[0] or w + n > cap[1]:
             raise ValueError(
                 f"growth would take the lattice from {h}x{w} to {h + n}x{w + n} in {steps} steps "
@@ -132,17 +134,31 @@ class Growth(eqx.Module):
         return (period > 0) & ((k - 1) % jnp.maximum(period, 1) == 0)
 
     # ---- one expansion -----------------------------------------------------------------
-    def expand(self, x, size, key):
-        """One expansion of the active region: a new row, then a new column."""
+    def expand(self, x, size, key, copies: int = 1):
+        """One expansion of the active region: new rows, then new columns.
+
+        `copies` (static) is how many times each dividing cell is duplicated: 1 on the
+        square lattice (a new row and a new column), 2 on the hexagonal lattice, whose odd
+        rows sit half a cell to the right: there the dividing cell of each column fills
+        three rows and the cells below it move down two rows, keeping their row parity and
+        so their place across the lattice; along a row the dividing cell fills three
+        columns and the cells after it move two whole cells right. One expansion then adds
+        two rows and two columns, from the same draws as a square lattice's one of each.
+        """
         if self.method != "division":
+            if copies != 1:
+                raise ValueError(f"growth method {self.method!r} resamples a square lattice; the hexagonal lattice "
+                                 "grows by division only (method='division')")
             return _interpolate(x, size, self.method)
         kr, kc = jax.random.split(key)
         h, w = size[0], size[1]
         rows = self.draw(kr, h, x.shape[-1], x.shape[-2], self.row_weights)  # one dividing row per column
-        x = _insert(x, rows, axis=-2)
+        for _ in range(copies):  # each copy moves the cells after the dividing one by one more
+            x = _insert(x, rows, axis=-2)
         cols = self.draw(kc, w, x.shape[-2], x.shape[-1], self.col_weights)  # one dividing column per row
-        x = _insert(x, cols, axis=-1)
-        return x, size + 1
+        for _ in range(copies):
+            x = _insert(x, cols, axis=-1)
+        return x, size + copies
 
     def birth_times(self, shape, expansions: int, key):
         """Which expansion created each cell: the paper's Fig. 3 as an array.

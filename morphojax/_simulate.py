@@ -100,6 +100,8 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
     if cfg.dynamic and not domain.supports_growth:
         raise ValueError(f"growth is not supported on the {domain.description}: pass growth=None and a state without "
                          "room to grow (State.from_arrays without capacity=)")
+    if cfg.dynamic and hasattr(domain, "check_shape") and is_concrete(state.size):
+        domain.check_shape(state.shape)  # the active region's (a wrapped hexagonal lattice: even rows)
     solver = as_solver(solver)
     if until is not None and not isinstance(until, SteadyState):
         raise ValueError(f"until must be None or mj.SteadyState(tol=...) (got {until!r})")
@@ -118,11 +120,13 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
                 "this state has no room to grow: build it with State.from_arrays(..., capacity=(rows, cols)) "
                 "or use state.with_capacity((rows, cols))"
             )
-        growth.check_capacity(state, steps, dt, origin)
+        growth.check_capacity(state, steps, dt, origin, domain.expansion_copies)
     sources = tuple(s.check(state) for s in sources)
     dt = as_float_array(dt, "dt").astype(state.fields.dtype)
     if plan is not None and not isinstance(plan, (BlockLadder, WholeCapacity)):
         raise ValueError(f"plan must be mj.BlockLadder(...) or mj.WholeCapacity() (got {plan!r})")
+    if cfg.dynamic and not hasattr(domain, "block"):  # the block ladder cuts square lattices only
+        plan = WholeCapacity()
     return domain, cfg, dt, sources, BlockLadder() if plan is None else plan, solver
 
 

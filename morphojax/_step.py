@@ -119,7 +119,8 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
         mask = domain.active_mask(x.shape[1:], c.size) if cfg.dynamic else None
         acting = model.at(x)  # the model itself unless its parameters follow the state
         if euler:
-            terms = domain.diffusion(c.p, per_species(acting.diffusion(), domain.ndim))
+            rates = per_species(acting.diffusion(), domain.ndim)
+            terms = domain.active_diffusion(c.p, rates, c.size) if cfg.dynamic else domain.diffusion(c.p, rates)
             new = update(acting, x, terms, production, mask)
         else:
             new = clamp(acting, advance(acting, x), production)
@@ -173,12 +174,13 @@ def grow_if_due(growth, domain: AbstractDomain, p, size, k, dt, key, overflow):
     """Expand the active region when phase step `k` (1-based) opens a growth period; a due
     expansion with no room left is recorded in `overflow` instead."""
     capacity = domain.interior(p).shape[-2:]
+    copies = domain.expansion_copies
     due = growth.is_due(k, dt)
-    room = (size[0] < capacity[0]) & (size[1] < capacity[1])
+    room = (size[0] + copies <= capacity[0]) & (size[1] + copies <= capacity[1])
 
     def grow(args):
         p, size = args
-        x, size = growth.expand(domain.interior(p), size, key)
+        x, size = growth.expand(domain.interior(p), size, key, copies)
         return domain.write(p, x, size, True), size
 
     p, size = jax.lax.cond(due & room, grow, lambda a: a, (p, size))

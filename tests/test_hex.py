@@ -190,15 +190,104 @@ def test_odd_rows_with_wrap_refused():
         mj.HexLattice(operator="nine-point")
 
 
-def test_growth_refused_on_hex():
+def test_growth_refused_with_polarity_and_interpolation_on_hex():
     model = mj.Turing(4.0, 3.0)
     growable = mj.State.from_arrays([_field((8, 8)), _field((8, 8), 1)], capacity=(12, 12))
     with pytest.raises(ValueError, match="growth is not supported on the hexagonal lattice"):
-        mj.simulate(model, growable, 2, 0.01, domain=mj.HexLattice())
-    fixed = mj.State.from_arrays([_field((8, 8)), _field((8, 8), 1)])
-    with pytest.raises(ValueError, match="growth is not supported"):
-        mj.simulate(model, fixed, 2, 0.01, domain=mj.HexLattice(), growth=mj.Growth(rate=1.0), key=jax.random.key(0))
-    assert mj.Lattice().supports_growth and not mj.HexLattice().supports_growth
+        mj.simulate(model, growable, 2, 0.01, domain=mj.HexLattice(anisotropic="b", polarity=0.3))
+    with pytest.raises(ValueError, match="division only"):
+        mj.simulate(model, growable, 2, 0.01, domain=mj.HexLattice(), growth=mj.Growth(1.0, method="bilinear"),
+                    key=jax.random.key(0))
+    with pytest.raises(ValueError, match="even number of rows"):  # a growing torus's active rows too
+        mj.simulate(model, mj.State.from_arrays([_field((7, 8)), _field((7, 8), 1)], capacity=(12, 12)), 2, 0.01,
+                    domain=mj.HexLattice("wrap"))
+    assert mj.HexLattice().supports_growth and mj.HexLattice().expansion_copies == 2
+
+
+# ---- growth ----------------------------------------------------------------------------------
+def _collapse_runs_of_three(line):
+    """`line` with its one run of three equal values cut to one (None unless there is exactly one)."""
+    line = list(line)
+    runs = [i for i in range(len(line) - 2) if line[i] == line[i + 1] == line[i + 2]]
+    if len(runs) != 1:
+        return None
+    i = runs[0]
+    return line[:i + 1] + line[i + 3:]
+
+
+@pytest.mark.parametrize("distribution", ["uniform", "shuffle", "normal", "triangular"])
+def test_hex_expansion_keeps_the_geometry(distribution):
+    """After every expansion of a growing hexagonal lattice, every cell keeps its place
+    across the lattice: each row holds one run of three copies of its dividing cell and,
+    cut back to one, the row's cells in order; then each column likewise gives back the
+    lattice before the expansion. So the cells after a dividing one moved by exactly two
+    rows (same row parity, the same x) or two whole cells along their row, and the rows
+    stay even (a torus stays a torus)."""
+    growth = mj.Growth(rate=1.0, distribution=distribution)
+    h, w, cap = 4, 6, (14, 16)
+    ids = np.zeros(cap)
+    ids[:h, :w] = np.arange(h * w).reshape(h, w) + 1
+    x, size = jnp.asarray(ids)[None], jnp.asarray([h, w], jnp.int32)
+    for k in range(4):
+        # the lattice grown so far, and fresh labels of its cells as a second species (every
+        # species divides at the same cells)
+        before = np.asarray(x[0])[: int(size[0]), : int(size[1])]
+        fresh = np.zeros(cap)
+        fresh[: before.shape[0], : before.shape[1]] = np.arange(before.size).reshape(before.shape) + 1
+        both, size = growth.expand(jnp.stack([x[0], jnp.asarray(fresh)]), size, jax.random.key(k),
+                                   mj.HexLattice().expansion_copies)
+        x = both[:1]
+        rows, cols = int(size[0]), int(size[1])
+        assert (rows, cols) == (before.shape[0] + 2, before.shape[1] + 2) and rows % 2 == 0
+        labels = np.asarray(both[1])
+        np.testing.assert_array_equal(np.asarray(both[0]), np.where(labels > 0, np.concatenate(
+            [[0.0], before.ravel()])[labels.astype(int)], 0.0))  # the fields moved with their labels
+        after, before = labels, fresh[: before.shape[0], : before.shape[1]]
+        assert not after[rows:].any() and not after[:, cols:].any()  # nothing outside the active region
+        collapsed = [_collapse_runs_of_three(r) for r in after[:rows, :cols]]
+        assert all(c is not None for c in collapsed), k
+        columns = [_collapse_runs_of_three(c) for c in np.asarray(collapsed).T]
+        assert all(c is not None for c in columns), k
+        np.testing.assert_array_equal(np.asarray(columns).T, before)
+
+
+@pytest.mark.parametrize("boundary", ["wrap", "no-flux"])
+def test_growable_hex_lattice_steps_its_active_region(boundary):
+    """A state with room to grow runs on its active region as the oracle runs on that
+    lattice alone: the ghost cells (wrap) and the dropped links (no-flux) follow the region."""
+    shape = (8, 10) if boundary == "wrap" else (7, 10)
+    a, b = _field(shape, 12), _field(shape, 13)
+    params = dict(alpha=16.0, beta=12.0, sp=0.05, da=0.3, db=0.05)
+    model = mj.Bard(**params, upper=(6.0, np.inf))
+    out = mj.simulate(model, mj.State.from_arrays([a, b], capacity=(13, 15)), 50, 0.5,
+                      domain=mj.HexLattice(boundary, "sum"))
+    ref = oracle.bard_run(a, b, oracle.hex_matrix(shape, boundary, "sum"), **params, dt=0.5, steps=50,
+                          upper=(6.0, np.inf))
+    assert out.shape == shape
+    for got, want in zip(out.arrays(), ref):
+        np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def test_growing_hex_run_between_expansions_against_oracle():
+    """A growing wrapped hexagonal run: expansions after phase steps 1 and 1 + p; between
+    them the run is the oracle's on the grown lattice, and the capacity check counts two
+    rows and two columns per expansion."""
+    shape, period = (6, 8), 10
+    a, b = _field(shape, 14), _field(shape, 15)
+    params = dict(alpha=16.0, beta=12.0, sp=0.05, da=0.3, db=0.05)
+    model, domain = mj.Bard(**params), mj.HexLattice("wrap", "sum")
+    growth, key = mj.Growth(rate=1.0 / (period * 0.5)), jax.random.key(3)
+    state = mj.State.from_arrays([a, b], capacity=(10, 12))
+    first = mj.simulate(model, state, 1, 0.5, domain=domain, growth=growth, key=key)
+    assert first.shape == (8, 10)
+    whole = mj.simulate(model, state, period, 0.5, domain=domain, growth=growth, key=key)
+    ref = oracle.bard_run(*first.arrays(), oracle.hex_matrix(first.shape, "wrap", "sum"), **params, dt=0.5,
+                          steps=period - 1)
+    assert whole.shape == (8, 10)
+    for got, want in zip(whole.arrays(), ref):
+        np.testing.assert_allclose(got, want, atol=1e-12)
+    with pytest.raises(ValueError, match="beyond the capacity"):  # three expansions: 12 x 14 > 10 x 12
+        mj.simulate(model, state, 2 * period + 1, 0.5, domain=domain, growth=growth, key=key)
 
 
 # ---- files, presets and pictures -------------------------------------------------------------

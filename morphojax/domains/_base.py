@@ -76,6 +76,17 @@ class AbstractDomain(eqx.Module):
     def apply(self, fields) -> Array:
         """The operator applied to plain fields (..., *spatial), the whole array active."""
 
+    @property
+    def expansion_copies(self) -> int:
+        """Rows and columns one matrix expansion adds (each dividing cell's copies): 1 on
+        the square lattice; a domain whose layout needs more says so (the hexagonal lattice)."""
+        return 1
+
+    def active_diffusion(self, carried: Array, rates, size: Array) -> list:
+        """`diffusion` on a growing domain whose active region is `size`: the same, unless
+        the operator depends on where the region ends (the hexagonal lattice's no-flux links)."""
+        return self.diffusion(carried, rates)
+
     # ---- stability (final) ---------------------------------------------------------------
     def max_stable_dt(self, max_diffusion):
         """Largest dt for which forward Euler on pure diffusion is stable: dt * D * rho <= 2.

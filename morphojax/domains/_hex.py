@@ -26,7 +26,7 @@ import numpy as np
 
 from jax import Array
 
-from .._checks import check_choice
+from .._checks import check_choice, is_concrete
 from . import _links, _stencils
 from ._base import AbstractDomain
 
@@ -170,8 +170,17 @@ class HexLattice(AbstractDomain):
             |d . p| / |d| <= 1), so the operator stays below D_max times the isotropic one
             in the order of symmetric matrices: the spectral radius above bounds it.
 
-    Growth (matrix expansion) is not supported on this lattice: a growing state is refused.
-    Pictures: `mj.hex_image` draws the cells as hexagons.
+    Growth (`growth=mj.Growth(...)`, matrix expansion with the square lattice's four laws)
+    keeps the layout: each dividing cell is duplicated twice, so the cells below it move
+    down two rows and keep their row parity (one row down would move them half a cell
+    sideways), and the cells after it along a row move two whole cells; one expansion adds
+    two rows and two columns (`Growth.expand`). A wrapped lattice's rows stay even. The
+    active region grows in the top-left corner of the capacity, its ghost cells along its
+    edges (as on the square lattice); no-flux drops the links that leave the active region.
+    Not with a polarity; a rate map's links across the active region's edge use the rates
+    as laid out in the capacity array. The division method only (no interpolation), and
+    every step on the whole capacity (`WholeCapacity`; the block ladder is the square
+    lattice's). Pictures: `mj.hex_image` draws the cells as hexagons.
     """
 
     boundary: str = eqx.field(static=True)
@@ -201,7 +210,11 @@ class HexLattice(AbstractDomain):
 
     @property
     def supports_growth(self) -> bool:
-        return False  # matrix expansion inserts rows and columns of a square layout
+        return not self.polarised_cells
+
+    @property
+    def expansion_copies(self) -> int:
+        return 2  # a cell moved by two rows keeps its row parity, so its place across the lattice
 
     @property
     def ndim(self) -> int:
@@ -231,35 +244,56 @@ class HexLattice(AbstractDomain):
         widths = [(0, 0)] * (x.ndim - 2) + [(1, 1), (1, 1)]
         return jnp.pad(x, widths, mode="wrap")
 
-    def _operator_padded(self, p):
+    def _operator_padded(self, p, mask=None):
+        """The operator on a padded array; `mask` (see `active_links`): the no-flux links
+        of a growing lattice's active region (default: those of the whole array)."""
         x = p[..., 1:-1, 1:-1]
         if self.boundary == "wrap":
             s = neighbour_sum(p) - 6.0 * x
-        else:
+        elif mask is None:
             mask = tuple(jnp.asarray(v, x.dtype) for v in links(x.shape))
             count = jnp.asarray(neighbour_count(x.shape, self.boundary), x.dtype)
             s = neighbour_sum(p, jnp, mask) - count * x
+        else:
+            count = neighbour_sum(jnp.ones(p.shape[-2:], x.dtype), jnp, mask)
+            s = neighbour_sum(p, jnp, mask) - count * x
         return s * (2.0 / 3.0) if self.operator == "laplacian" else s
+
+    @staticmethod
+    def active_links(shape, size, dtype):
+        """`links` of the active region `size` (may be traced) of a (rows, cols) array: a
+        cell has a neighbour above unless it is in row 0, below unless in row size[0] - 1,
+        and so on."""
+        r, c = jnp.arange(shape[-2])[:, None], jnp.arange(shape[-1])[None, :]
+        return tuple(v.astype(dtype) for v in (r > 0, r < size[0] - 1, c > 0, c < size[1] - 1))
 
     # ---- what the stepping loop uses ---------------------------------------------------
     def carry(self, fields, size, dynamic):
-        if dynamic:
-            raise ValueError("growth is not supported on a HexLattice (its active region is the whole array)")
+        if dynamic:  # wrapped ghost cells along the active region's edges (no-flux masks them)
+            if is_concrete(size):
+                self.check_shape(np.asarray(size))
+            return _stencils.repad(_stencils.pad(fields, "wrap"), fields, size, "wrap")
         return self._pad(fields)
 
     def interior(self, carried):
         return carried[..., 1:-1, 1:-1]
 
-    def diffusion(self, carried, rates):
+    def active_diffusion(self, carried, rates, size):
+        if self.boundary == "wrap":
+            return self.diffusion(carried, rates)
+        shape = (carried.shape[-2] - 2, carried.shape[-1] - 2)
+        return self.diffusion(carried, rates, self.active_links(shape, size, carried.dtype))
+
+    def diffusion(self, carried, rates, mask=None):
         n = carried.shape[0]
         _links.check_species(self.anisotropic, n, "HexLattice")
         if self.follow is not None:
             _links.check_species((self.follow,), n, "Polarize", "reagent")
         on_links = [self._on_links(i, rates[i]) for i in range(n)]
-        op = None if all(on_links) else self._operator_padded(carried)
+        op = None if all(on_links) else self._operator_padded(carried, mask)
         shape = carried.shape[-2:]
-        mask = None if self.boundary == "wrap" else tuple(
-            jnp.asarray(v, carried.dtype) for v in links((shape[0] - 2, shape[1] - 2)))
+        if mask is None and self.boundary != "wrap":
+            mask = tuple(jnp.asarray(v, carried.dtype) for v in links((shape[0] - 2, shape[1] - 2)))
         # a polarity that follows a reagent: from the fields this step starts from
         polarity = (hex_gradient_leaves(carried[self.follow], mask) if self.follow is not None else
                     _links.unit_polarity(self.polarity, self.polarised))
@@ -298,6 +332,8 @@ class HexLattice(AbstractDomain):
         return s * (2.0 / 3.0) if self.operator == "laplacian" else s
 
     def write(self, carried, new, size, dynamic):
+        if dynamic:
+            return _stencils.repad(carried, new, size, "wrap")
         return self._pad(new)
 
     def active_mask(self, shape, size):

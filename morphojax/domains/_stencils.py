@@ -102,7 +102,8 @@ def repad(p, x, size, boundary: str):
     """
     ds, dus = jax.lax.dynamic_slice_in_dim, jax.lax.dynamic_update_slice_in_dim
     ax_r, ax_c = x.ndim - 2, x.ndim - 1
-    h, w = size[0], size[1]
+    # the default integer, as the constant indices below (int64 with x64, whatever size holds)
+    h, w = jnp.asarray(size[0], int), jnp.asarray(size[1], int)
     wrap = boundary == "wrap"
     top, bottom = (h - 1, 0) if wrap else (0, h - 1)  # interior rows the ghost rows copy
     left, right = (w - 1, 0) if wrap else (0, w - 1)
