@@ -26,6 +26,7 @@ from .models import (
     RuleReinforcement,
     Schnakenberg,
     ThesisReinforcement,
+    Thomas,
     Turing,
     model_from_name,
 )
@@ -175,6 +176,7 @@ __all__ = [
     "save_png",
     "Schnakenberg",
     "ThesisReinforcement",
+    "Thomas",
     "simulate",
     "SimulationError",
     "AbstractSolver",

@@ -128,11 +128,12 @@ def initial_state(model, key, shape, capacity=None) -> State:
     """The customary random start for `model`: see `paper_state`, `gray_scott_state`.
 
     Reinforcement starts uniform in [t - w, t + w); the classic reactions (FitzHugh-Nagumo,
-    Gierer-Meinhardt, Schnakenberg, Brusselator) at their homogeneous state with `around`'s
+    Gierer-Meinhardt, Schnakenberg, Brusselator, Thomas) at their homogeneous state with `around`'s
     noise; the thesis's reinforcement rules uniform between their limits (the thesis's
     `conc 0.5 dev 0.5`); composites stack their parts' starts.
     """
-    from .models import Bard, Composite, GrayScott, Reinforcement, RuleReinforcement, ThesisReinforcement, Turing
+    from .models import (Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott, Reinforcement,
+                         RuleReinforcement, Schnakenberg, ThesisReinforcement, Thomas, Turing)
 
     if isinstance(model, Turing):
         return paper_state(key, shape, capacity)
@@ -143,7 +144,8 @@ def initial_state(model, key, shape, capacity=None) -> State:
     if isinstance(model, Reinforcement):
         t, w = float(jnp.max(model.threshold)), float(jnp.max(model.width))
         return random_state(key, shape, (t - w, t + w), names=("c",), capacity=capacity)
-    if hasattr(model, "homogeneous_state"):  # the classic reactions: their steady state, a little noise
+    if isinstance(model, (FitzHughNagumo, GiererMeinhardt, Schnakenberg, Brusselator, Thomas)):
+        # the classic reactions: their steady state, a little noise
         steady = [float(jnp.max(v)) for v in model.homogeneous_state()]
         return random_state(key, shape, *(around(v) for v in steady), names=model.species, capacity=capacity)
     if isinstance(model, (ThesisReinforcement, RuleReinforcement)):  # uniform between the limits, as the thesis

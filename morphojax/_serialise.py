@@ -35,7 +35,7 @@ from .domains import AbstractDomain, HexLattice, Lattice, Mesh
 from ._growth import Growth, Source
 from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott,
                      Modulated, Modulation, Morphogen, Reaction, Reinforcement, RuleReinforcement, Schnakenberg,
-                     ThesisReinforcement, Turing)
+                     ThesisReinforcement, Thomas, Turing)
 from ._state import State
 from .solvers import solver_from_dict, solver_to_dict, until_from_dict, until_to_dict
 from ._version import __version__
@@ -43,7 +43,7 @@ from ._version import __version__
 # the models a file can rebuild (a Reaction's file cannot: its function is code)
 MODEL_TYPES = {cls.__name__: cls for cls in (Turing, Bard, GrayScott, Reinforcement, FitzHughNagumo, GiererMeinhardt,
                                             Schnakenberg, Brusselator, ThesisReinforcement, RuleReinforcement,
-                                            Morphogen)}
+                                            Morphogen, Thomas)}
 
 
 def to_jsonable(value):

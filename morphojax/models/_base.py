@@ -29,6 +29,7 @@ import numpy as np
 from jax import Array
 
 from .._checks import as_float_array, check_finite, is_concrete
+from ._steady import homogeneous_values
 
 LETTERS = "abcdefghijklmnopqrstuvwxyz"
 
@@ -105,6 +106,32 @@ class AbstractModel(eqx.Module):
     @property
     def n_species(self) -> int:
         return len(self.species)
+
+    # ---- the homogeneous steady state (linear stability, steady starts) ----------------
+    def unclamped_state(self) -> tuple | None:
+        """A homogeneous state where the reaction alone vanishes, limits left out, in
+        closed form (one value per species), or None where the model has none (then
+        `homogeneous_state` starts Newton's method from 1 per species, or a guess)."""
+        return None
+
+    def homogeneous_state(self, guess=None) -> tuple:
+        """The homogeneous steady state within the saturation limits, one value per species
+        (scalars; one per cell for a model with parameter maps).
+
+        A state is steady under the clamped step when, for each species, the reaction
+        vanishes strictly inside the limits, or the species sits on a limit and the
+        reaction pushes past it (so the clamp holds it there). Where the model has a
+        closed form (`unclamped_state`) inside the limits, that is the answer; otherwise a
+        damped semismooth Newton method finds one (under `jit` and `vmap` too), starting
+        from `guess` (one value per species), the closed form or 1 per species, clipped
+        into the limits (see `morphojax/models/_steady.py`). Several states may exist:
+        `guess` picks the nearest one Newton's method reaches.
+
+        Raises a ValueError (an equinox runtime error inside `jit`) when no steady state
+        within the limits was found, for example when the reaction's own state lies beyond
+        a limit and pushes back inside it: the clamp then holds nothing still.
+        """
+        return homogeneous_values(self, guess)
 
     # ---- parameters by name (sweeps, fitting, saving) -------------------------------
     @abc.abstractmethod

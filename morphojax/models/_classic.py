@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
 from jax import Array
 
@@ -62,6 +63,15 @@ class GrayScott(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "GrayScott diffusion")
 
+    def unclamped_state(self):
+        """(u, v) = (1, 0), the trivial state, which exists for every F, k and is always
+        linearly stable (its Jacobian is diag(-F, -(F + k))): Pearson's patterns grow from
+        a finite perturbation, not from a Turing instability of it. Where F >= 4 (F + k)^2
+        two more states exist, v = (F +- sqrt(F^2 - 4 F (F + k)^2)) / (2 (F + k)) and
+        u = (F + k) / v; pass `homogeneous_state(guess=(u, v))` near one to get it."""
+        one = jnp.ones_like(self.feed * self.kill)
+        return one, 0.0 * one
+
 
 class FitzHughNagumo(AbstractReaction):
     """FitzHugh-Nagumo model as printed in paper 003 (section II.C.1):
@@ -108,7 +118,7 @@ class FitzHughNagumo(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "FitzHughNagumo diffusion")
 
-    def homogeneous_state(self):
+    def unclamped_state(self):
         """(u, v) where the reaction vanishes: (0, 0), the only one when (a + 1)^2 < 4 (a + b)."""
         zero = jnp.zeros_like(self.a * self.b)
         return zero, zero
@@ -168,7 +178,7 @@ class GiererMeinhardt(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "GiererMeinhardt diffusion")
 
-    def homogeneous_state(self):
+    def unclamped_state(self):
         """(u, v) = (nu / mu, nu / mu^2), where the reaction vanishes."""
         return self.nu / self.mu, self.nu / self.mu**2
 
@@ -215,7 +225,7 @@ class Schnakenberg(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "Schnakenberg diffusion")
 
-    def homogeneous_state(self):
+    def unclamped_state(self):
         """(u, v) = (a + b, b / (a + b)^2), where the reaction vanishes."""
         total = self.a + self.b
         return total, self.b / total**2
@@ -262,6 +272,84 @@ class Brusselator(AbstractReaction):
     def diffusion(self):
         return species_stack((self.du, self.dv), 2, "Brusselator diffusion")
 
-    def homogeneous_state(self):
+    def unclamped_state(self):
         """(u, v) = (a, b / a), where the reaction vanishes."""
         return self.a, self.b / self.a
+
+
+class Thomas(AbstractReaction):
+    """Thomas's substrate-inhibition model (Thomas 1975; Murray, Mathematical Biology II,
+    2003, chapter 2), named by paper 003:
+
+        du/dt = a - u - R + Du lap(u)
+        dv/dt = alpha (b - v) - R + Dv lap(v),     R = rho u v / (1 + u + K u^2)
+
+    The substrate u and the co-substrate v are supplied at constant rates (a and alpha b),
+    decay linearly, and are consumed together by an enzyme reaction R that u inhibits
+    when abundant (K > 0). The homogeneous state solves the cubic
+    (a - u)(1 + u + K u^2) = rho u (b - (a - u) / alpha) for u, with v = b - (a - u) / alpha
+    (`unclamped_state`: bisection on the u where v >= 0, then Newton's method).
+
+    Defaults: Murray's a = 150, b = 100, alpha = 1.5, rho = 13, K = 0.05, whose state
+    (37.74, 25.16) is Turing-unstable for Dv / Du > 27.0; Du = 0.5 and Dv = 20 (ratio 40)
+    give spots of wavelength about 8 cells on the nine-point stencil, growing at about
+    0.13 per unit time (`mj.dispersion` checks both).
+    """
+
+    species: ClassVar[tuple[str, ...]] = ("u", "v")
+    a: Array
+    b: Array
+    alpha: Array
+    rho: Array
+    K: Array
+    du: Array
+    dv: Array
+    lower: Array
+    upper: Array
+
+    BISECTIONS: ClassVar[int] = 60  # halvings of the bracket of u: below float64's resolution
+
+    def __init__(self, a=150.0, b=100.0, alpha=1.5, rho=13.0, K=0.05, du=0.5, dv=20.0, lower=0.0, upper=math.inf):
+        self.a = as_float_array(a, "Thomas.a")
+        self.b = as_float_array(b, "Thomas.b")
+        self.alpha = as_float_array(alpha, "Thomas.alpha")
+        self.rho = as_float_array(rho, "Thomas.rho")
+        self.K = as_float_array(K, "Thomas.K")
+        self.du = as_float_array(du, "Thomas.du")
+        self.dv = as_float_array(dv, "Thomas.dv")
+        self.lower = species_stack(lower, 2, "Thomas.lower")
+        self.upper = species_stack(upper, 2, "Thomas.upper")
+
+    def __check_init__(self):
+        _check_fields(self, nonnegative=("a", "b", "rho", "K", "du", "dv"))
+        check_finite(self.alpha, "Thomas.alpha")
+        check_range(self.alpha, "Thomas.alpha (v's supply and decay rate)", low=0.0, low_open=True)
+        check_limits(self)
+
+    def reaction(self, x):
+        u, v = x[0], x[1]
+        r = self.rho * u * v / (1.0 + u + self.K * u * u)
+        return jnp.stack([self.a - u - r, self.alpha * (self.b - v) - r])
+
+    def diffusion(self):
+        return species_stack((self.du, self.dv), 2, "Thomas diffusion")
+
+    def unclamped_state(self):
+        """(u, v) where the reaction vanishes: u the root of the cubic
+        h(u) = (a - u)(1 + u + K u^2) - rho u (b - (a - u) / alpha) between
+        max(0, a - alpha b) (where v = 0, h >= 0) and a (h = -rho a b <= 0), by bisection;
+        v = b - (a - u) / alpha. Where the cubic has three roots there, this is one of them."""
+        a, b, alpha, rho, K = jnp.broadcast_arrays(self.a, self.b, self.alpha, self.rho, self.K)
+
+        def h(u):
+            return (a - u) * (1.0 + u + K * u * u) - rho * u * (b - (a - u) / alpha)
+
+        def halve(_, bracket):
+            lo, hi = bracket
+            mid = 0.5 * (lo + hi)
+            right = h(mid) > 0  # the root lies above mid
+            return jnp.where(right, mid, lo), jnp.where(right, hi, mid)
+
+        lo, hi = jax.lax.fori_loop(0, self.BISECTIONS, halve, (jnp.maximum(0.0, a - alpha * b), a))
+        u = 0.5 * (lo + hi)
+        return u, b - (a - u) / alpha

@@ -65,6 +65,25 @@ class Composite(AbstractModel):
     def upper(self):  # type: ignore[override]
         return self._cat([p.upper for p in self.parts])
 
+    def unclamped_state(self):
+        """The parts' closed forms side by side, or None when a part has none."""
+        states = [p.unclamped_state() for p in self.parts]
+        return None if any(s is None for s in states) else tuple(v for s in states for v in s)
+
+    def homogeneous_state(self, guess=None):
+        """The parts' homogeneous states side by side (the parts do not react with each
+        other, so each is solved alone; `guess` has one value per species of the whole)."""
+        if guess is not None:
+            guess = tuple(guess)
+            if len(guess) != self.n_species:
+                raise ValueError(f"Composite.homogeneous_state: guess needs {self.n_species} values (got {len(guess)})")
+        out, start = [], 0
+        for p in self.parts:
+            part = None if guess is None else guess[start : start + p.n_species]
+            out.extend(p.homogeneous_state(part))
+            start += p.n_species
+        return tuple(out)
+
     def parameters(self):
         return {f"{i}.{k}": v for i, p in enumerate(self.parts) for k, v in p.parameters().items()}
 

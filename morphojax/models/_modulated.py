@@ -130,6 +130,15 @@ class Modulated(AbstractModel):
     def reaction(self, x):
         return self.at(x).reaction(x)
 
+    def homogeneous_state(self, guess=None):
+        """A homogeneous steady state of the modulated reaction (its parameters set from
+        the state itself), by Newton's method from `guess`, or from the wrapped model's
+        homogeneous state when it has one, else 1 per species (see
+        `AbstractModel.homogeneous_state`)."""
+        if guess is None:
+            guess = self.model.unclamped_state()
+        return super().homogeneous_state(guess)
+
     def diffusion(self):
         # the largest rates the maps can give: what the explicit-Euler check needs (a
         # reaction parameter set to its bound leaves the diffusion as it is)

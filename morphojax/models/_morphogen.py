@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from typing import ClassVar
 
+import jax.numpy as jnp
 from jax import Array
 
 from .._checks import as_float_array, check_finite, check_range
@@ -61,3 +62,13 @@ class Morphogen(AbstractReaction):
 
     def diffusion(self):
         return species_stack(self.diffusion_rate, 1, "Morphogen diffusion")
+
+    def unclamped_state(self):
+        """(r,) = ((production - removal) / decay,) for decay > 0; without decay, the lower
+        limit when removal outweighs production (the clamp holds it there), the upper one
+        when production does (no steady state below an infinite limit), 0 when they
+        balance."""
+        net = self.production - self.removal
+        safe = jnp.where(self.decay > 0, self.decay, 1.0)
+        none = jnp.where(net < 0, self.lower[0], jnp.where(net > 0, self.upper[0], 0.0))
+        return (jnp.where(self.decay > 0, net / safe, none),)

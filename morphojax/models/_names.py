@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ._base import AbstractModel
-from ._classic import Brusselator, FitzHughNagumo, GiererMeinhardt, GrayScott, Schnakenberg
+from ._classic import Brusselator, FitzHughNagumo, GiererMeinhardt, GrayScott, Schnakenberg, Thomas
 from ._reinforcement import Reinforcement
 from ._saturation import RuleReinforcement, ThesisReinforcement
 from ._turing import Bard, Turing
@@ -12,6 +12,7 @@ MODELS = {
     "turing": Turing, "bard": Bard, "gray-scott": GrayScott, "reinforcement": Reinforcement,
     "fitzhugh-nagumo": FitzHughNagumo, "gierer-meinhardt": GiererMeinhardt, "schnakenberg": Schnakenberg,
     "brusselator": Brusselator, "thesis-reinforcement": ThesisReinforcement, "rule-reinforcement": RuleReinforcement,
+    "thomas": Thomas,
 }
 _SPELLINGS = {"grayscott": "gray-scott", "fitzhughnagumo": "fitzhugh-nagumo", "fhn": "fitzhugh-nagumo",
               "gierermeinhardt": "gierer-meinhardt", "thesisreinforcement": "thesis-reinforcement",

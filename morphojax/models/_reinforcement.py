@@ -58,3 +58,10 @@ class Reinforcement(AbstractReaction):
 
     def diffusion(self):
         return species_stack(self.diffusion_rate, 1, "Reinforcement diffusion")
+
+    def unclamped_state(self):
+        """(t,): the threshold, the middle root of the cubic, which the reaction pushes away
+        from (its rate there is +w); t - w and t + w are the stable roots (rate -2w each),
+        `homogeneous_state(guess=...)` near one gives it. One species has no Turing
+        instability: diffusion only damps its modes."""
+        return (self.threshold,)

@@ -75,6 +75,11 @@ class ThesisReinforcement(AbstractReaction):
     def diffusion(self):
         return species_stack(self.diffusion_rate, 1, f"{type(self).__name__} diffusion")
 
+    def unclamped_state(self):
+        """(b,): the middle root, which attracts for s > 0 (see the class docstring); a and
+        c are the other roots, `homogeneous_state(guess=...)` near one gives it."""
+        return (self.b,)
+
 
 def _window(r, above, below, width):
     """1 where above < r < below, else 0; with width > 0 the product of two logistic
@@ -151,6 +156,16 @@ class RuleReinforcement(AbstractReaction):
         check_finite(self.diffusion_rate, f"{name}.diffusion")
         check_range(self.diffusion_rate, f"{name}.diffusion (a diffusion rate)", low=0.0)
         check_limits(self)
+
+    def unclamped_state(self):
+        """(r,) in the band where neither rule acts: the midpoint of [fall_below, rise_above]
+        when fall_below <= rise_above (every value of the band is steady; with width > 0
+        the logistic tails make the midpoint one only approximately, and Newton's method in
+        `homogeneous_state` moves it to where the two tails balance), else the midpoint of
+        the limits."""
+        band = (self.fall_below + self.rise_above) / 2
+        limits = (self.lower[0] + self.upper[0]) / 2
+        return (jnp.where(self.fall_below <= self.rise_above, band, limits),)
 
     def reaction(self, x):
         r = x[0]

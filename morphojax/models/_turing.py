@@ -62,6 +62,12 @@ class Bard(AbstractReaction):
     def diffusion(self):
         return species_stack((self.da, self.db), 2, "Bard diffusion")
 
+    def unclamped_state(self):
+        """(a, b) = (alpha / (alpha - beta), alpha - beta), where the reaction vanishes
+        (sp != 0; it needs alpha != beta, and alpha > beta for b > 0)."""
+        b = self.alpha - self.beta
+        return self.alpha / b, b
+
 
 class Turing(AbstractReaction):
     """The leopard paper's bounded Turing model (eqs. 3-4):
@@ -108,3 +114,9 @@ class Turing(AbstractReaction):
 
     def diffusion(self):  # Bard's (Da, Db) = (r s, s)
         return species_stack((self.ratio * self.scale, self.scale), 2, "Turing diffusion")
+
+    def unclamped_state(self):
+        """(a, b) = (4, 4): Bard's alpha / (alpha - beta) and alpha - beta for 16 and 12.
+        The leopard paper's Fig. 4 rows with Ua = 4 or Lb = 4 put a limit right on it."""
+        four = jnp.full_like(self.ratio * self.scale, self.ALPHA / (self.ALPHA - self.BETA))
+        return four, jnp.full_like(four, self.ALPHA - self.BETA)
