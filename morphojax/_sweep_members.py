@@ -10,6 +10,7 @@ serves every value.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
 
 import equinox as eqx
@@ -124,3 +125,14 @@ def member_model(model, growth, dt, changes: dict):
 def label(values: dict) -> str:
     """A member's values as "name=value, ..." (in errors, captions and titles)."""
     return ", ".join(f"{k}={v:g}" for k, v in values.items())
+
+
+def grid_labels(names, axes) -> tuple[list[str] | None, list[str]]:
+    """(row labels, column labels) of a grid's picture: the last name's values head the
+    columns (3 significant digits); each row is one combination of the others, as
+    "name=value, ..." (None for a one-axis grid)."""
+    cols = [f"{v:.3g}" for v in axes[-1]]
+    if len(axes) == 1:
+        return None, cols
+    rows = [", ".join(f"{n}={v:.3g}" for n, v in zip(names[:-1], combo)) for combo in itertools.product(*axes[:-1])]
+    return rows, cols

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import itertools
 import math
 from pathlib import Path
 from typing import Any
@@ -26,7 +25,7 @@ from ._render import png_path, tile_montage
 from ._serialise import (bounds_from_data, check_output_path, dumps, growth_from_dict, key_from_data, model_from_dict,
                          read_npz, source_from_dict, stamp, write_npz)
 from ._state import State
-from ._sweep_members import DT, label, member_model
+from ._sweep_members import DT, grid_labels, label, member_model
 
 
 @dataclasses.dataclass
@@ -172,13 +171,8 @@ class SweepResult:
         if self.axes is None:
             captions = [label({n: self.values[n][i] for n in self.names}) for i in range(len(self))]
             return tile_montage(data, unstable, captions=captions, **draw)
-        last = self.names[-1]
-        draw["title"] = f"{draw['title']} | columns: {last}"
-        col_labels = [f"{v:.3g}" for v in self.axes[-1]]
-        if len(self.axes) == 1:
-            return tile_montage(data, unstable, col_labels=col_labels, **draw)
-        row_labels = [", ".join(f"{n}={v:.3g}" for n, v in zip(self.names[:-1], combo))
-                      for combo in itertools.product(*self.axes[:-1])]
+        draw["title"] = f"{draw['title']} | columns: {self.names[-1]}"
+        row_labels, col_labels = grid_labels(self.names, self.axes)
         return tile_montage(data, unstable, row_labels=row_labels, col_labels=col_labels, **draw)
 
     def _title(self, species):
