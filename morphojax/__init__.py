@@ -84,9 +84,11 @@ from . import cells
 from .cells import (Cells, Listing, cell_disc, cell_grid, cells_at, cells_texture, load_cells, load_listing, render_cells,
                     save_cells, simulate_cells, write_cells_svg)
 
+from ._compilation_cache import use_compilation_cache
 from ._version import __version__
 
 __all__ = [
+    "use_compilation_cache",
     "AbstractAutomaton",
     "AbstractDomain",
     "AbstractModel",

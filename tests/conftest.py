@@ -7,6 +7,13 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
+import morphojax as mj
+
+# Programs compiled before (by an earlier module, after `_release_compiled_programs`, or by
+# an earlier run) are loaded from JAX's persistent compilation cache instead of compiled
+# again; MORPHOJAX_CACHE_DIR chooses its folder, `off` turns it off.
+mj.use_compilation_cache()
+
 # Compilation dominates the first call of a property; deadlines would only measure it.
 settings.register_profile(
     "morphojax", deadline=None, max_examples=12, derandomize=True,

@@ -32,7 +32,7 @@ TOPICS: dict[str, tuple[str, ...]] = {
         "simulate", "rollout", "run_status", "State", "Run", "RunStatus", "SimulationError",
         "AbstractSolver", "Euler", "ETDRK", "IMEX", "SteadyState",
         "paper_state", "random_state", "constant_state", "gray_scott_state", "thesis_state",
-        "initial_state",
+        "initial_state", "use_compilation_cache",
     ),
     "growth": (
         "Growth", "Source", "DISTRIBUTIONS", "leopard_row_weights", "BlockLadder", "WholeCapacity",

@@ -18,6 +18,7 @@ import os
 import sys
 from importlib.metadata import entry_points
 
+from .._compilation_cache import use_compilation_cache
 from . import _ca, _listing, _mesh, _run, _sweep
 
 ENTRY_POINT_GROUP = "morphojax.commands"
@@ -29,6 +30,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="morphojax", description="Differentiable pattern formation in JAX.")
     parser.add_argument("--debug", action="store_true",
                         help="show the full traceback of an error (default: one line)")
+    parser.add_argument("--no-compilation-cache", action="store_true",
+                        help="compile every program again instead of loading it from the compilation cache "
+                             "(default: kept in $MORPHOJAX_CACHE_DIR or ~/.cache/morphojax/jax; see "
+                             "`morphojax.use_compilation_cache`)")
     sub = parser.add_subparsers(dest="command", required=True)
     for register in CORE_COMMANDS:
         register(sub)
@@ -43,6 +48,8 @@ def main(argv=None) -> int:
     (one line; `morphojax --debug ...` shows its traceback), 130 interrupted."""
     args = build_parser().parse_args(argv)
     debug = getattr(args, "debug", False)
+    if not getattr(args, "no_compilation_cache", False):
+        use_compilation_cache()
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt as err:  # Ctrl-C: a line saying what is kept, no traceback
