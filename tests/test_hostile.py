@@ -464,3 +464,19 @@ def test_simulate_refuses_steps_past_the_int32_step_counter():
     state = mj.paper_state(jax.random.key(0), (6, 6))
     with pytest.raises(ValueError, match="step counter within int32"):
         mj.simulate(mj.Turing(), state, 2**31 + 5, 0.01)
+
+
+def test_python_api_refuses_automaton_and_potts_lattices_beyond_memory(monkeypatch):
+    """The sizes the command line checks are checked in the Python API too, before any
+    allocation: a lattice start, an automaton run, a Potts blob."""
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "1G")
+    with pytest.raises(ValueError, match=r"lattice of 3000x3000x3000 cells .* needs about .*; the limit is 1"):
+        mj.random_cells(jax.random.key(0), (3000, 3000, 3000), k=2)
+    with pytest.raises(ValueError, match="whole numbers"):
+        mj.random_cells(jax.random.key(0), (10.5, 10))
+    with pytest.raises(ValueError, match=r"Potts lattice of 200000x200000 sites .* needs about"):
+        mj.potts_blob((200_000, 200_000), 40, 5)
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "1M")  # a 200^2 run of 3 states needs about 8 MB
+    cells = np.zeros((200, 200), np.int8)
+    with pytest.raises(ValueError, match=r"automaton run \(200x200 cells, 3 states\) needs about"):
+        mj.YoungCA([(2.3, 6.01, 1.0, -0.3), (2.3, 6.01, 1.0, -0.3)]).run(cells, 1)

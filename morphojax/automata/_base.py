@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .._checks import check_count, check_range, is_concrete
+from .._checks import check_count, check_range, check_run_size, is_concrete
 from ._loop import AutomatonRun, Codec, iterate
 
 
@@ -96,6 +96,8 @@ class AbstractAutomaton(eqx.Module):
         shows a bar (a string names it): the run goes in pieces of about a twentieth
         (whole multiples of `save_every`), with the same result as one loop."""
         cells = call(self, "_check_cells", cells)
+        check_run_size(cells.shape, self.n_states,
+                       what=f"this automaton run ({'x'.join(map(str, cells.shape))} cells, {self.n_states} states)")
         check_count(steps, "run.steps", "updates")
         check_range(threshold, "run.threshold (fraction of changed cells)", low=0.0, high=1.0)
         if save_every is not None:

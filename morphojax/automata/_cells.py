@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from .._checks import check_range
+from .._checks import check_range, check_run_size, check_shape
 
 YOUNG_P = 0.015  # Young's probability that a cell starts differentiated
 
@@ -23,7 +23,8 @@ def random_cells(key, shape, k: int = 1, p=None, dtype=jnp.int8) -> Array:
     uniform over the k + 1 states (the well-mixed start of paper 002). `key` is a
     `jax.random` key; `p` may be traced (vmap over keys and p works).
     """
-    shape = tuple(int(s) for s in shape)
+    shape = check_shape(shape, "random_cells.shape")
+    check_run_size(shape, int(k) + 1, what=f"a lattice of {'x'.join(map(str, shape))} cells and its run")
     check_range(k, "random_cells.k (number of species)", low=1, high=int(jnp.iinfo(dtype).max) - 1)
     k = int(k)
     if p is None:

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._checks import check_count, check_range, is_concrete
+from .._checks import check_count, check_range, check_run_size, is_concrete
 
 
 class PottsState(eqx.Module):
@@ -82,6 +82,7 @@ def potts_blob(shape, radius, cell_width, *, types=(1, 2), key=None, center=None
     check_count(rows, "potts_blob shape[0]", "sites", low=1)
     check_count(cols, "potts_blob shape[1]", "sites", low=1)
     check_count(cell_width, "potts_blob cell_width", "sites", low=1)
+    check_run_size((rows, cols), 2, what=f"a Potts lattice of {rows}x{cols} sites and its run")
     check_range(radius, "potts_blob radius", low=0, low_open=True)
     types = tuple(int(t) for t in types)
     if not types or min(types) < 1:
