@@ -52,6 +52,8 @@ from ._descriptors import Descriptors, describe, radial_power_spectrum, relative
 from ._sweep import sweep
 from ._sweep_result import Member, SweepResult, load_sweep
 from ._parameter_map import parameter_map
+from ._stability import Dispersion, dispersion
+from ._turing_space import TuringSpace, turing_space
 from .automata import (
     RULES as LIFE_RULES,
     YOUNG_P,
@@ -103,6 +105,8 @@ __all__ = [
     "Composite",
     "constant_state",
     "describe",
+    "dispersion",
+    "Dispersion",
     "Descriptors",
     "DISTRIBUTIONS",
     "Experiment",
@@ -178,6 +182,8 @@ __all__ = [
     "save_png",
     "Schnakenberg",
     "ThesisReinforcement",
+    "turing_space",
+    "TuringSpace",
     "Thomas",
     "simulate",
     "SimulationError",

@@ -20,7 +20,7 @@ PACKAGE = "morphojax"
 TOPICS: dict[str, tuple[str, ...]] = {
     "models": (
         "AbstractModel", "Turing", "Bard", "GrayScott", "Reinforcement", "Composite",
-        "FitzHughNagumo", "GiererMeinhardt", "Schnakenberg", "Brusselator", "Reaction",
+        "FitzHughNagumo", "GiererMeinhardt", "Schnakenberg", "Brusselator", "Thomas", "Reaction",
         "ThesisReinforcement", "RuleReinforcement", "Morphogen", "Modulated", "Modulation",
         "Barrier", "parameter_map", "model_from_name", "model_to_dict", "model_from_dict",
     ),
@@ -28,6 +28,7 @@ TOPICS: dict[str, tuple[str, ...]] = {
         "AbstractDomain", "Lattice", "HexLattice", "Mesh", "Polarize", "gradient_polarity",
         "laplacian", "max_stable_dt", "STENCILS", "BOUNDARIES",
     ),
+    "stability": ("dispersion", "Dispersion", "turing_space", "TuringSpace"),
     "stepping": (
         "simulate", "rollout", "run_status", "State", "Run", "RunStatus", "SimulationError",
         "AbstractSolver", "Euler", "ETDRK", "IMEX", "SteadyState",
