@@ -38,6 +38,7 @@ from ._plan import BlockLadder, WholeCapacity
 from .solvers import ETDRK, IMEX, AbstractSolver, Euler, SteadyState
 from ._simulate import rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
+from ._growing_mesh import MeshGrowth
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
 from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
@@ -124,6 +125,7 @@ __all__ = [
     "gray_scott_state",
     "GrayScott",
     "Growth",
+    "MeshGrowth",
     "hard_cells",
     "hex_image",
     "HexLattice",

@@ -116,14 +116,16 @@ class Phase:
     until: Any = None
 
     def __post_init__(self):
+        from ._growing_mesh import MeshGrowth
         from ._growth import Growth, Source
 
         if not isinstance(self.model, AbstractModel):
             raise ValueError(f"Phase.model must be a morphojax model such as mj.Turing(...) (got {self.model!r})")
         check_count(self.steps, "Phase.steps", "steps")
         check_range(self.dt, "Phase.dt", low=0.0, low_open=True)
-        if self.growth is not None and not isinstance(self.growth, Growth):
-            raise ValueError(f"Phase.growth must be None or a Growth(rate=...) (got {self.growth!r})")
+        if self.growth is not None and not isinstance(self.growth, (Growth, MeshGrowth)):
+            raise ValueError(f"Phase.growth must be None, a Growth(rate=...) or, on a mesh, a MeshGrowth(...) "
+                             f"(got {self.growth!r})")
         sources = (self.sources,) if isinstance(self.sources, Source) else tuple(self.sources or ())
         for src in sources:
             if not isinstance(src, Source):
@@ -192,9 +194,34 @@ class Experiment:
     show: str = "b"
     cmap: Any = "inferno"
 
+    def __post_init__(self):
+        from ._growing_mesh import MeshGrowth
+
+        grows = [i for i, p in enumerate(self.phases) if isinstance(p.growth, MeshGrowth)]
+        if grows and grows[0] != len(self.phases) - 1:
+            raise ValueError(f"Experiment {self.name!r}: phase {grows[0] + 1} grows its mesh (MeshGrowth) and is not "
+                             "the last: a later phase would run on the mesh it started from; a growing mesh's "
+                             "phase must be the experiment's last")
+
     @property
     def total_steps(self) -> int:
         return sum(p.steps for p in self.phases)
+
+    def final_domain(self, state):
+        """The domain the last phase leaves `state` on: its domain, or for a growing mesh
+        (`MeshGrowth`) that mesh grown for the steps the state has done in the phase (the
+        phases before it counted whole), rebuilt by replaying its events."""
+        from ._growing_mesh import MeshGrowth
+
+        last = self.phases[-1]
+        if not isinstance(last.growth, MeshGrowth):
+            return last.domain
+        done = min(max(int(state.step) - sum(p.steps for p in self.phases[:-1]), 0), last.steps)
+        mesh = last.growth.grown(last.domain, done, last.dt, capacity=state.capacity[0])
+        if mesh.n_vertices != state.shape[0]:
+            raise ValueError(f"{self.name}: the state has {state.shape[0]} vertices, the mesh grown for {done} steps "
+                             f"of the last phase {mesh.n_vertices}: the state is not this experiment's")
+        return mesh
 
     def to_dict(self):
         """Plain-data (JSON-ready) form of the experiment: every phase, model, growth and

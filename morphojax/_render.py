@@ -318,8 +318,8 @@ def render_experiment(state, experiment, scale: int = 1, vmin=None, vmax=None) -
         from ._render_hex import hex_image
 
         return hex_image(array, scale=max(2, 8 * scale), **style)
-    if isinstance(experiment.phases[-1].domain, Mesh):  # the surface, seen from one side
+    if isinstance(experiment.phases[-1].domain, Mesh):  # the surface, seen from one side (grown, if it grows)
         from ._render_mesh import mesh_image
 
-        return mesh_image(experiment.phases[-1].domain, array, size=384 * max(1, scale), **style)
+        return mesh_image(experiment.final_domain(state), array, size=384 * max(1, scale), **style)
     return to_image(array, scale=scale, **style)

@@ -32,6 +32,7 @@ from numpy.lib import format as npformat
 from ._bounds import Barrier
 from ._checks import STEP_COUNTER_MAX, cells_of, check_memory, is_concrete
 from .domains import AbstractDomain, HexLattice, Lattice, Mesh
+from ._growing_mesh import MeshGrowth
 from ._growth import Growth, Source
 from .models import (AbstractModel, Bard, Brusselator, Composite, FitzHughNagumo, GiererMeinhardt, GrayScott,
                      Modulated, Modulation, Morphogen, Reaction, Reinforcement, RuleReinforcement, Schnakenberg,
@@ -140,13 +141,24 @@ def domain_from_dict(data: dict) -> AbstractDomain:
     return DOMAIN_TYPES[kind](**from_jsonable(dict(data.get("params", {}))))
 
 
-def growth_to_dict(g: Growth) -> dict:
+def growth_to_dict(g) -> dict:
+    """A `Growth` (no "type": files before meshes grew hold only these) or a `MeshGrowth`."""
+    if isinstance(g, MeshGrowth):
+        return to_jsonable({"type": "MeshGrowth", "rate": g.rate, "field": g.field, "divide_area": g.divide_area,
+                            "every": g.every, "dilute": g.dilute, "edge": g.edge, "seed": g.seed})
     return to_jsonable({"rate": g.rate, "distribution": g.distribution, "row_weights": g.row_weights,
                         "col_weights": g.col_weights, "spread": g.spread, "method": g.method})
 
 
-def growth_from_dict(d: dict) -> Growth:
+def growth_from_dict(d: dict):
     d = from_jsonable(dict(d))
+    if d.get("type", "Growth") == "MeshGrowth":
+        return MeshGrowth(d["rate"], field=None if d.get("field") is None else np.asarray(d["field"], float),
+                          divide_area=d.get("divide_area"), every=int(d.get("every", 50)),
+                          dilute=bool(d.get("dilute", False)), edge=d.get("edge", "random"),
+                          seed=int(d.get("seed", 0)))
+    if d.get("type", "Growth") != "Growth":
+        raise ValueError(f"unknown growth type {d.get('type')!r} in saved data; allowed: Growth, MeshGrowth")
     return Growth(rate=d["rate"], distribution=d.get("distribution", "uniform"),
                   row_weights=d.get("row_weights"), col_weights=d.get("col_weights"),
                   spread=d.get("spread", 1.0 / 6.0), method=d.get("method", "division"))

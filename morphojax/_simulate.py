@@ -21,6 +21,7 @@ import numpy as np
 from ._bounds import Barrier, bounds_policy
 from ._checks import as_float_array, check_finite, check_range, check_step_counter, is_concrete
 from .domains import as_domain
+from ._growing_mesh import MeshGrowth, run_growing_mesh
 from ._loop import drive
 from .models import AbstractModel, per_species
 from ._plan import BlockLadder, WholeCapacity
@@ -137,6 +138,8 @@ _OPTIONS = dict(domain=None, stencil=None, bounds="clip", growth=None, sources=(
 def _run(model, state, steps, dt, boundary, options, save_every=None, save_fn=None, description=None):
     """Check the inputs, drive the loop; (final State, RunStatus, frames)."""
     o = options
+    if isinstance(o["growth"], MeshGrowth):  # its operator is rebuilt between compiled chunks
+        return run_growing_mesh(model, state, steps, dt, boundary, o, save_every, description)
     domain, cfg, dt, sources, plan, solver = _prepare(
         model, state, steps, dt, o["domain"], boundary, o["stencil"], o["bounds"], o["growth"], o["sources"],
         o["key"], o["check_dt"], o["origin"], o["plan"], o["solver"], o["until"])
@@ -169,7 +172,9 @@ def simulate(model: AbstractModel, state: State, steps: int, dt, boundary: str |
             eight neighbours).
         bounds: "clip" (clamp to [lower, upper] after every step, the paper's method) or
             "barrier" / `Barrier(k)` (smooth rational terms, needs a ~20x smaller dt).
-        growth: a `Growth` schedule (random matrix expansion); needs a state with capacity.
+        growth: a `Growth` schedule (random matrix expansion, on square and hexagonal
+            lattices) or, on a `Mesh`, a `MeshGrowth` (scaling and division, run in compiled
+            chunks between its growth events; eager only); needs a state with capacity.
         sources: localised production, a sequence of `Source`.
         key: `jax.random` key, required with growth or sources. The same key gives the same run.
         throw: raise `SimulationError` if the state becomes NaN/Inf (with the first bad step)

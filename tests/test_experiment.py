@@ -165,7 +165,9 @@ def test_every_preset_builds():
             for ph in exp.phases:
                 state = ph.prepare(state)
                 assert ph.model.n_species == state.n_species, (name, ph.name)
-                if ph.growth is not None:
+                if isinstance(ph.growth, mj.MeshGrowth):  # the mesh it grows fits the vertex capacity
+                    assert not ph.growth.geometry(ph.domain, state.capacity[0], ph.steps, ph.dt).overflow, name
+                elif ph.growth is not None:
                     ph.growth.check_capacity(state, ph.steps, ph.dt)
                     n = ph.growth.expansions(ph.steps, ph.dt)
                     state = mj.State.from_arrays(

@@ -36,7 +36,7 @@ TOPICS: dict[str, tuple[str, ...]] = {
         "initial_state", "use_compilation_cache",
     ),
     "growth": (
-        "Growth", "Source", "DISTRIBUTIONS", "leopard_row_weights", "BlockLadder", "WholeCapacity",
+        "Growth", "MeshGrowth", "Source", "DISTRIBUTIONS", "leopard_row_weights", "BlockLadder", "WholeCapacity",
         "Experiment", "Phase", "Initial", "Result", "run_experiment", "load_experiment", "preset",
         "PRESETS", "render_experiment", "experiment_picture",
     ),

@@ -159,9 +159,10 @@ class Mesh(AbstractDomain):
     `inverse_mass`, `rho`) are the built operator, passed back by a saved file; leave them
     out to build it.
 
-    Growth is not supported on a mesh. `Mesh.from_file`, `Mesh.icosphere`, `Mesh.torus`
-    and `Mesh.capsule` make meshes (their keyword `options` are those above);
-    `mj.mesh_image` draws values on one.
+    Matrix expansion (`Growth`) is for lattices; a mesh grows with `MeshGrowth` (scaling
+    and division, its operator rebuilt between compiled chunks). `Mesh.from_file`,
+    `Mesh.icosphere`, `Mesh.torus` and `Mesh.capsule` make meshes (their keyword `options`
+    are those above); `mj.mesh_image` draws values on one.
     """
 
     vertices: np.ndarray
@@ -241,7 +242,7 @@ class Mesh(AbstractDomain):
 
     @property
     def supports_growth(self) -> bool:
-        return False  # a mesh's vertices are fixed; matrix expansion is for lattices
+        return False  # matrix expansion is for lattices; a mesh grows with MeshGrowth
 
     @property
     def ndim(self) -> int:
@@ -277,8 +278,7 @@ class Mesh(AbstractDomain):
     # `write` packs the new values. Anything else is carried as it is: a complex carry
     # always means packed pairs.
     def carry(self, fields, size, dynamic):
-        if dynamic:
-            raise ValueError("growth is not supported on a Mesh (its vertices are fixed)")
+        # dynamic: a growing mesh's chunk (`MeshGrowth`), its active vertices first
         self._check_fields(fields)
         pairs_up = fields.ndim == 2 and fields.shape[0] % 2 == 0 and fields.dtype in PAIRABLE
         return pack_pairs(fields) if pairs_up and jax.default_backend() == "cpu" else fields
@@ -298,7 +298,7 @@ class Mesh(AbstractDomain):
         return pack_pairs(new) if jnp.iscomplexobj(carried) else new
 
     def active_mask(self, shape, size):
-        return jnp.ones(tuple(shape), bool)
+        return jnp.arange(shape[-1]) < size[0]  # the active vertices come first
 
     def apply(self, fields):
         """The Laplace-Beltrami operator on per-vertex values (..., V), in length^-2."""
