@@ -42,7 +42,8 @@ class Growth(eqx.Module):
     first step of each period (phase steps 1, 1 + p, 1 + 2p, ...), after that step's
     reaction, diffusion and clamp; so N steps give ceil(N / p) expansions and the last one
     has p - 1 steps of reaction-diffusion after it to absorb its division noise. Each
-    expansion adds one row and one column to the active lattice.
+    expansion adds one row and one column to the active lattice (two of each on a
+    `HexLattice`, whose layout needs every dividing cell copied twice: see `expand`).
 
     Args:
         rate: expansions per unit time (time = steps x dt); 0 disables growth.

@@ -152,6 +152,22 @@ def test_scaling_with_and_without_dilution(dilute):
                                rtol=1e-12)
 
 
+def test_growth_events_do_not_recompile_the_chunks():
+    """The operator rebuilt at every event keeps its padded shape, so the chunks between
+    events are one compiled program however many events fall in the run (the first call's
+    cut chunk aside): running 3 and then 6 events compiles nothing more."""
+    from morphojax._loop import _integrate
+
+    mesh = _mesh()
+    growth = mj.MeshGrowth(0.05, divide_area=0.38, every=EVERY, seed=4)
+    state = _state(mesh, 2).with_capacity((2 * CAPACITY,))
+    mj.simulate(_diffusion(), state, 3 * EVERY, DT, domain=mesh, growth=growth)
+    before = _integrate._cached._cache_size()
+    out = mj.simulate(_diffusion(), state, 6 * EVERY, DT, domain=mesh, growth=growth)
+    assert _integrate._cached._cache_size() == before
+    assert out.shape[0] > growth.grown(mesh, 3 * EVERY, DT).n_vertices  # the later events divided
+
+
 def test_capacity_overflow_is_reported():
     """Divisions beyond the vertex capacity are not made; simulate raises, run_status says so."""
     mesh = _mesh()
