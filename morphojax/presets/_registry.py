@@ -45,7 +45,9 @@ class ExperimentPreset(Preset):
 
     A figure's montage has one row per member labelled `row_labels` (default: the last
     word of each member's name) and, with `snapshots`, one column per snapshot of the
-    member's run; otherwise one tile per member, `len(col_labels)` to a row.
+    member's run; otherwise one tile per member, `len(col_labels)` to a row, the rows
+    labelled by `row_labels` only. Tiles share the widest tile's width
+    (`cli._run.figure_layout`).
     """
 
     kind: ClassVar[str] = "reaction-diffusion"
