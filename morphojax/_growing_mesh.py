@@ -188,7 +188,7 @@ def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None
                          f"phase steps has {geometry.n_vertices}; pass the state this phase's run made (and its "
                          "origin=), or the mesh it started from")
     cfg = Config(bounds=bounds_policy(options["bounds"]), dynamic=True)
-    domain, rho = geometry.stepping_domain(rho=STATED_RHO)
+    domain, rho = geometry.stepping_domain(rho=STATED_RHO, measure=options["check_dt"])
     slots = domain.neighbours.shape[0]
     euler = as_solver(None)  # forward Euler
     _check_inputs(model, domain, state, steps, dt, cfg, None, False, euler)
@@ -223,7 +223,7 @@ def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None
                 fields = geometry.event(growth, float(dt), np.asarray(current.fields, np.float64))
                 current = State(jnp.asarray(fields, current.fields.dtype), (geometry.n_vertices,), current.step,
                                 current.time, current.names, growable=True)
-                domain, rho = geometry.stepping_domain(slots, STATED_RHO)
+                domain, rho = geometry.stepping_domain(slots, STATED_RHO, options["check_dt"])
                 slots = domain.neighbours.shape[0]
                 check(rho, f"after the growth event at phase step {done + t} ({geometry.n_vertices} vertices)")
                 if geometry.overflow:

@@ -191,6 +191,8 @@ def test_refusals():
         mj.simulate(model, state, 20, DT, domain=mesh, growth=growth, solver=mj.IMEX())
     with pytest.raises(ValueError, match="largest stable dt"):  # the limit of the grown operator
         mj.simulate(model, state, 20, 5.0, domain=mesh, growth=growth)
+    with pytest.raises(ValueError, match="eagerly"):  # its geometry is NumPy between compiled chunks
+        jax.jit(lambda s: mj.simulate(model, s, 20, DT, domain=mesh, growth=growth).fields)(state)
     with pytest.raises(ValueError, match="grown for 0 phase steps"):
         mj.simulate(model, _state(mj.Mesh.icosphere(1)), 20, DT, domain=mesh, growth=growth)
     with pytest.raises(ValueError, match="last"):

@@ -155,17 +155,18 @@ class MeshGeometry:
         """The current geometry as a `Mesh` (its operator built and checked as any mesh's)."""
         return Mesh(self.vertices, self.faces, mass=self.mass)
 
-    def stepping_domain(self, slots: int = 0, rho: float | None = None):
+    def stepping_domain(self, slots: int = 0, rho: float | None = None, measure: bool = True):
         """(Mesh padded to the capacity for the compiled chunks, spectral radius of the real
-        operator). Inactive vertices: no neighbours, zero weights, unit inverse mass. The
-        padded mesh states `rho` (default: the real radius) as its radius, a static field: the
-        run gives one fixed value, so that its chunks are not recompiled at every event."""
+        operator, NaN unless `measure`). Inactive vertices: no neighbours, zero weights, unit
+        inverse mass. The padded mesh states `rho` (default: the real radius) as its radius,
+        a static field: the run gives one fixed value, so that its chunks are not recompiled
+        at every event."""
         v, f, cap = self.vertices, self.faces, self.capacity
         rows, cols, w, m = cotangent_operator(v, f, self.mass)
         if not (m > 0).all():
             raise ValueError(f"MeshGrowth: {int((m <= 0).sum())} vertices of the grown mesh have no positive area")
         table, weights = neighbour_table(len(v), rows, cols, w)
-        real_rho = largest_eigenvalue(table, weights, 1.0 / m)
+        real_rho = largest_eigenvalue(table, weights, 1.0 / m) if measure or rho is None else float("nan")
         k = max(slots, -(-table.shape[0] // SLOTS) * SLOTS)
         full = np.repeat(np.arange(cap, dtype=np.int32)[None], k, axis=0)
         full[: table.shape[0], : len(v)] = table
