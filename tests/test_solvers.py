@@ -94,8 +94,10 @@ def test_orders_of_convergence(boundary):
             assert abs(observed - solver.order) < 0.25, (solver.name, solver.order, errors)
 
 
-@pytest.mark.parametrize("solver", [mj.ETDRK(4), mj.IMEX(2)], ids=["etdrk4", "imex2"])
-def test_gradients_match_finite_differences(solver):
+@pytest.mark.parametrize("solver, boundary", [(mj.ETDRK(4), "no-flux"), (mj.IMEX(2), "no-flux"),
+                                              (mj.ETDRK(1), "wrap"), (mj.ETDRK(2), "wrap"), (mj.IMEX(1), "wrap")],
+                         ids=["etdrk4-no-flux", "imex2-no-flux", "etdrk1-wrap", "etdrk2-wrap", "imex1-wrap"])
+def test_gradients_match_finite_differences(solver, boundary):
     with jax.enable_x64(True):
         u, v = _start(seed=3)
         state = mj.State.from_arrays([u, v])
@@ -103,7 +105,7 @@ def test_gradients_match_finite_differences(solver):
 
         def loss(feed, du):
             model = mj.GrayScott(feed, KILL, du, DV)
-            return jnp.sum(weights * mj.simulate(model, state, 6, 1.5, "no-flux", solver=solver).fields)
+            return jnp.sum(weights * mj.simulate(model, state, 6, 1.5, boundary, solver=solver).fields)
 
         grad = jax.grad(loss, argnums=(0, 1))(FEED, DU)
         eps = 1e-6

@@ -20,12 +20,15 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..models import AbstractModel
+from .._bounds import Barrier
+from ..models import AbstractModel, per_species
 
 
 class AbstractSolver(eqx.Module):
     """Base of the time-stepping policies. Each has an `order`: its order of accuracy in dt
     with the limits not binding."""
+
+    order: eqx.AbstractVar[int]
 
     @property
     def name(self) -> str:
@@ -58,15 +61,32 @@ class Euler(AbstractSolver):
     domain, with growth, sources, diffusion maps and anisotropy. First order.
     """
 
-    @property
-    def order(self) -> int:
-        return 1
+    order: int = eqx.field(static=True, default=1, init=False)
 
     def check(self, domain, model, *, dynamic: bool, sources: tuple, fields=None, bounds="clip") -> None:
         return None
 
     def check_dt(self, domain, dt, model) -> None:
         domain.check_dt(dt, model.max_diffusion())
+
+
+def reaction_and_limit(acting, bounds, ndim: int):
+    """(reaction(y), limit(y)) of a step's stages: the model's reaction with a `Barrier`'s
+    terms, and the clamp to the limits with "clip". Stages are clamped as a step would be,
+    so the reaction is only ever evaluated inside the limits (measured on fig4-r40 at dt
+    0.3: unclamped stages gave labyrinths where Euler gives spots)."""
+    lower, upper = per_species(acting.lower, ndim), per_species(acting.upper, ndim)
+    barrier = bounds if isinstance(bounds, Barrier) else None
+
+    def reaction(y):
+        r = acting.reaction(y)
+        return jnp.stack([r[i] + (barrier.terms(y[i], lower[i], upper[i]) if barrier is not None else 0.0)
+                          for i in range(y.shape[0])])
+
+    def limit(y):
+        return jnp.clip(y, lower, upper) if bounds == "clip" else y
+
+    return reaction, limit
 
 
 def rate_shape(model, fields=None) -> tuple:

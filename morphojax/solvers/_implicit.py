@@ -20,9 +20,15 @@ import jax.scipy.sparse.linalg
 
 from ..domains import HexLattice, Lattice, Mesh
 from ..models import per_species
+from ._base import reaction_and_limit
 
 CG_TOL = 1e-6  # relative residual in float32, about its rounding (1e-12 in float64)
 CG_MAXITER = 1000
+
+# Ascher, Ruuth and Spiteri's IMEX (2,2,2) scheme (Appl. Numer. Math. 25, 1997): L-stable,
+# stiffly accurate, second order, two implicit stages (here and on the transforms, `IMEX`).
+ARS_GAMMA = 1.0 - 2.0 ** -0.5
+ARS_DELTA = 1.0 - 1.0 / (2.0 * ARS_GAMMA)
 
 
 def why_not_symmetric(domain, rates_shape: tuple) -> str | None:
@@ -63,3 +69,22 @@ def make_solver(domain, shape):
         return u
 
     return solve, apply
+
+
+def make_advance(order: int, domain, dt, bounds, shape):
+    """advance(acting model, x, h=dt) -> x after one IMEX step of `order` (1: SBDF1, 2: ARS
+    (2,2,2)) in cell space, each implicit stage solved by conjugate gradients."""
+    solve, apply = make_solver(domain, shape)
+
+    def advance(acting, x, h=dt):
+        reaction, limit = reaction_and_limit(acting, bounds, domain.ndim)
+        nx = reaction(x)
+        if order == 1:  # (1 - h L) x1 = x + h N(x)
+            return solve(acting, x + h * nx, h, x)
+        g, d = ARS_GAMMA, ARS_DELTA
+        u1 = solve(acting, x + h * g * nx, g * h, x)
+        n1 = reaction(limit(u1))
+        rhs = x + (1.0 - g) * h * apply(acting, u1) + h * (d * nx + (1.0 - d) * n1)
+        return solve(acting, rhs, g * h, u1)
+
+    return advance

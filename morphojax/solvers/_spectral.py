@@ -19,12 +19,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._bounds import Barrier
 from .._checks import check_count, check_finite, check_range
 from ..domains import Lattice
+from .._bounds import Barrier
 from ..models import AbstractModel, per_species
 from . import _implicit
-from ._base import AbstractSolver, rate_shape
+from ._base import AbstractSolver, rate_shape, reaction_and_limit
 from ._phi import phi
 
 
@@ -43,25 +43,6 @@ def _diagonal(domain, model, fields=None) -> bool:
 def _fields_like(model, shape, dtype):
     """A stand-in for the fields a step advances (their shape and dtype only)."""
     return jax.ShapeDtypeStruct((model.n_species,) + tuple(shape), dtype)
-
-
-def reaction_and_limit(acting, bounds, ndim: int):
-    """(reaction(y), limit(y)) of a step's stages: the model's reaction with a `Barrier`'s
-    terms, and the clamp to the limits with "clip". Stages are clamped as a step would be,
-    so the reaction is only ever evaluated inside the limits (measured on fig4-r40 at dt
-    0.3: unclamped stages gave labyrinths where Euler gives spots)."""
-    lower, upper = per_species(acting.lower, ndim), per_species(acting.upper, ndim)
-    barrier = bounds if isinstance(bounds, Barrier) else None
-
-    def reaction(y):
-        r = acting.reaction(y)
-        return jnp.stack([r[i] + (barrier.terms(y[i], lower[i], upper[i]) if barrier is not None else 0.0)
-                          for i in range(y.shape[0])])
-
-    def limit(y):
-        return jnp.clip(y, lower, upper) if bounds == "clip" else y
-
-    return reaction, limit
 
 
 def _rate_vector(model):
@@ -227,10 +208,6 @@ class ETDRK(_TransformSolver):
         return inv(co["E"] * v + co["f1"] * nv + 2 * co["f2"] * (na + nb) + co["f3"] * nc), None
 
 
-# Ascher, Ruuth and Spiteri's IMEX (2,2,2) scheme (Appl. Numer. Math. 25, 1997): L-stable,
-# stiffly accurate, second order, two implicit stages.
-_ARS_GAMMA = 1.0 - 2.0 ** -0.5
-_ARS_DELTA = 1.0 - 1.0 / (2.0 * _ARS_GAMMA)
 
 
 class IMEX(_TransformSolver):
@@ -268,36 +245,19 @@ class IMEX(_TransformSolver):
     def make_advance(self, model, domain, dt, bounds, shape):
         if _diagonal(domain, model, _fields_like(model, shape, dt.dtype)):
             return super().make_advance(model, domain, dt, bounds, shape)
-        return self._advance_by_cg(model, domain, dt, bounds, shape)
-
-    def _advance_by_cg(self, model, domain, dt, bounds, shape):
-        """The same schemes in cell space, each implicit stage solved by conjugate gradients."""
-        solve, apply = _implicit.make_solver(domain, shape)
-
-        def advance(acting, x, h=dt):
-            reaction, limit = reaction_and_limit(acting, bounds, domain.ndim)
-            nx = reaction(x)
-            if self.order == 1:  # (1 - h L) x1 = x + h N(x)
-                return solve(acting, x + h * nx, h, x)
-            g, d = _ARS_GAMMA, _ARS_DELTA
-            u1 = solve(acting, x + h * g * nx, g * h, x)
-            n1 = reaction(limit(u1))
-            rhs = x + (1.0 - g) * h * apply(acting, u1) + h * (d * nx + (1.0 - d) * n1)
-            return solve(acting, rhs, g * h, u1)
-
-        return advance
+        return _implicit.make_advance(self.order, domain, dt, bounds, shape)
 
     def coefficients(self, z, dt):
         if self.order == 1:
             return {"h": dt / (1.0 - z)}
-        co = {"z": z, "solve": 1.0 / (1.0 - _ARS_GAMMA * z), "dt": dt}
+        co = {"z": z, "solve": 1.0 / (1.0 - _implicit.ARS_GAMMA * z), "dt": dt}
         return {**co, "h": dt / (1.0 - z)} if self.adaptive else co
 
     def advance(self, co, x, reaction, euler_rate, fwd, inv, limit):
         """(the step, its embedded lower-order estimate or None), as `ETDRK.advance`."""
         if self.order == 1:
             return x + inv(co["h"] * fwd(euler_rate(x))), None
-        g, d, h = _ARS_GAMMA, _ARS_DELTA, co["dt"]
+        g, d, h = _implicit.ARS_GAMMA, _implicit.ARS_DELTA, co["dt"]
         v = fwd(x)
         nx = reaction(x)
         u1 = co["solve"] * (v + h * g * fwd(nx))
