@@ -64,6 +64,27 @@ def test_division_keeps_a_closed_oriented_manifold(edge):
     mj.Mesh(geo.vertices, geo.faces)  # Mesh's own checks: manifold, no degenerate face, every vertex used
 
 
+def test_division_on_an_open_surface_splits_boundary_edges_alone():
+    """A flat square sheet (a boundary): a split of a boundary edge adds one face, of an
+    interior edge two; V - E + F stays 1 (a disc), every interior edge keeps its reverse,
+    and the area is unchanged."""
+    n = 6
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    vertices = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], 1)
+    faces = [(r * n + c, r * n + c + 1, (r + 1) * n + c + 1) for r in range(n - 1) for c in range(n - 1)]
+    faces += [(r * n + c, (r + 1) * n + c + 1, (r + 1) * n + c) for r in range(n - 1) for c in range(n - 1)]
+    geo = MeshGeometry(mj.Mesh(vertices, np.asarray(faces), mass="barycentric"), 10_000)
+    growth = mj.MeshGrowth(0.0, divide_area=0.3, every=EVERY, edge="random", seed=7)
+    geo.event(growth, DT)
+    edges = _edges(geo.faces)
+    boundary = [e for e in edges if (e[1], e[0]) not in edges]
+    interior = len(edges) - len(boundary)
+    assert geo.n_vertices - (interior // 2 + len(boundary)) + len(geo.faces) == 1
+    assert len(boundary) > 4 * (n - 1)  # some boundary edges were split
+    np.testing.assert_allclose(triangle_areas(geo.vertices, geo.faces).sum(), (n - 1) ** 2, rtol=1e-13)
+    assert np.allclose(geo.vertices[:, 2], 0.0) and len(geo.faces) > 2 * (n - 1) ** 2
+
+
 def test_scaling_multiplies_lengths_by_the_rate():
     """Uniform scaling: after n events every vertex is exp(rate every dt n) times as far
     from the centroid and the area exp(2 rate every dt n) times; a field scales each vertex
