@@ -55,7 +55,8 @@ class Family:
     make(shape) -> a model, Experiment or one-species YoungCA whose compared field is `shape`;
     bounds: {name: (low, high, geometric)}; fit: parameters fitted by default; length:
     the parameter with wavelength ~ length ** length_power (None: none); steps, window,
-    dt_cap: the run (steps per simulation, differentiated steps, largest time step).
+    dt_cap: the run (steps per simulation, differentiated steps, largest time step);
+    solver, stride: how a model family's runs are stepped (default forward Euler).
     """
 
     name: str
@@ -70,6 +71,12 @@ class Family:
     description: str = ""
     # species whose diffusion follows the fitted `angle` (thesis eq. 4.8); () = isotropic
     anisotropic: tuple = ()
+    # how a model family's runs are stepped (`fitting.Simulator`): None is forward Euler; a
+    # solver takes one step of `stride` Euler steps, the same simulated time. A family
+    # declares one only where `benchmarks/fit_solvers.py` finds its statistics within the
+    # seed-to-seed spread of Euler's (benchmarks/results/fit_solvers.md)
+    solver: object = None
+    stride: int = 1
 
     @property
     def oriented(self) -> bool:

@@ -100,6 +100,12 @@ class Simulator(eqx.Module):
             modulo pi), uniform over the lattice, fittable like the model's parameters.
         safety, dt_cap, dt: adaptive time step for a model template (dt fixes it instead).
         fixed: parameters set before the fitted ones.
+        solver, stride: how a model template is stepped: `solver` (default `mj.Euler()`)
+            takes one step of `stride` times the Euler time step for every `stride` of
+            `steps`, so the simulated time and the differentiated stretch of time are
+            Euler's (`steps` and `window` must be multiples of `stride`). A family declares
+            the solver whose statistics match Euler's within the seed-to-seed spread
+            (`fitting.FAMILIES`, measured by `benchmarks/fit_solvers.py`).
     """
 
     template: Any  # a pytree: its parameters are traced, so fits reuse compiled programs
@@ -115,6 +121,8 @@ class Simulator(eqx.Module):
     dt: float | None = eqx.field(static=True, default=None)
     fixed: tuple = eqx.field(static=True, default=())
     compare: tuple | None = eqx.field(static=True, default=None)
+    solver: Any = eqx.field(static=True, default=None)  # None: forward Euler
+    stride: int = eqx.field(static=True, default=1)
 
     def __post_init__(self):
         # the compared lattice of an experiment, fixed while the parameters are concrete
@@ -130,6 +138,12 @@ class Simulator(eqx.Module):
             raise ValueError(f"Simulator.template: a YoungCA must have one species (got {self.template.n_species})")
         if not isinstance(self.template, mj.Experiment) and (self.steps < 1 or not 0 <= self.window <= self.steps):
             raise ValueError(f"need steps >= 1 and 0 <= window <= steps (got steps={self.steps}, window={self.window})")
+        if int(self.stride) < 1 or self.steps % self.stride or self.window % self.stride:
+            raise ValueError(f"Simulator.stride must be an integer >= 1 dividing steps and window "
+                             f"(got stride={self.stride}, steps={self.steps}, window={self.window})")
+        if (self.solver is not None or self.stride != 1) and not isinstance(self.template, mj.AbstractModel):
+            raise ValueError("Simulator.solver and stride step a model template; experiments and automata "
+                             "keep their own steps")
 
     # ---- parameters -------------------------------------------------------------------
     def parameter_names(self) -> list[str]:
@@ -213,12 +227,12 @@ class Simulator(eqx.Module):
         if isinstance(self.template, mj.AbstractModel):
             model = self.build(params)
             state = _start(self.template, model, jax.random.fold_in(key, 0), self.shape)
-            dt = self.time_step(model)
-            opts = dict(domain=self.domain(params), check_dt=False, throw=False)
-            head = self.steps - self.window
+            dt = self.time_step(model) * self.stride
+            opts = dict(domain=self.domain(params), check_dt=False, throw=False, solver=self.solver)
+            head = (self.steps - self.window) // self.stride
             if head > 0:
                 state = jax.lax.stop_gradient(mj.simulate(model, state, steps=head, dt=dt, **opts))
-            state = mj.simulate(model, state, steps=self.window, dt=dt, checkpoint=True, **opts)
+            state = mj.simulate(model, state, steps=self.window // self.stride, dt=dt, checkpoint=True, **opts)
             field = state.fields[self._species(state.names)]
         else:
             exp = self.build(params)
@@ -280,7 +294,8 @@ class Simulator(eqx.Module):
         return mj.to_jsonable({"template": tmpl, "shape": list(self.final_shape()), "steps": self.steps,
                                "window": self.window, "species": self.species, "boundary": self.boundary,
                                "stencil": self.stencil, "anisotropic": list(self.anisotropic), "safety": self.safety,
-                               "dt_cap": self.dt_cap, "dt": self.dt, "fixed": dict(self.fixed)})
+                               "dt_cap": self.dt_cap, "dt": self.dt, "fixed": dict(self.fixed),
+                               "solver": mj.solvers.solver_to_dict(self.solver), "stride": self.stride})
 
 
 def _start(template, model, key, shape):

@@ -194,6 +194,28 @@ def test_short_horizon_gradients_match_finite_differences():
             assert g[i] == pytest.approx(fd, rel=1e-3, abs=1e-6)
 
 
+def test_a_simulator_with_a_solver_steps_the_same_time_in_strides():
+    """Simulator(solver=..., stride=k) takes one solver step of k Euler steps: the same
+    simulated time as Euler's run (checked against mj.simulate directly), and the same
+    differentiated stretch of time; strides that do not divide steps and window are refused."""
+    sim = fitting.Simulator(mj.Turing(), shape=(16, 18), steps=40, window=8, solver=mj.ETDRK(order=1), stride=4)
+    params = {"ratio": 12.0, "scale": 0.8}
+    key = jax.random.key(3)
+    model = sim.build(params)
+    dt = float(sim.time_step(model)) * 4
+    state = fitting._simulator._start(sim.template, model, jax.random.fold_in(key, 0), (16, 18))
+    expected = mj.simulate(model, state, 10, dt, solver=mj.ETDRK(order=1), check_dt=False).fields[1]
+    np.testing.assert_allclose(np.asarray(sim.run(params, key)), np.asarray(expected), rtol=1e-5, atol=1e-6)
+    euler = fitting.Simulator(mj.Turing(), shape=(16, 18), steps=40, window=8)
+    assert not np.allclose(np.asarray(euler.run(params, key)), np.asarray(expected))  # a different stepper
+    assert sim.describe()["solver"] == {"solver": "ETDRK", "order": 1} and sim.describe()["stride"] == 4
+    for steps, window in ((42, 8), (40, 6)):
+        with pytest.raises(ValueError, match="stride must be an integer >= 1 dividing steps and window"):
+            fitting.Simulator(mj.Turing(), shape=(16, 18), steps=steps, window=window, solver=mj.ETDRK(1), stride=4)
+    with pytest.raises(ValueError, match="solver and stride step a model template"):
+        fitting.Simulator(mj.YoungCA([(2.3, 6.01, 1.0, -0.3)]), shape=(16, 16), steps=4, window=2, stride=2)
+
+
 # ---- end to end -------------------------------------------------------------------------
 
 
