@@ -120,7 +120,9 @@ def largest_real_part(jacobian, diffusion, mu) -> Array:
         d = jacobian[1, 1] + mu * diffusion[1]
         half = 0.5 * (a + d)
         disc = half * half - (a * d - jacobian[0, 1] * jacobian[1, 0])
-        return half + jnp.sqrt(jnp.maximum(disc, 0.0))  # complex roots: the real part is half the trace
+        # complex roots: the real part is half the trace (a finite square root on both
+        # branches keeps gradients finite where disc <= 0)
+        return half + jnp.where(disc > 0, jnp.sqrt(jnp.where(disc > 0, disc, 1.0)), 0.0)
     m = jacobian + mu[..., None, None] * jnp.diag(diffusion)
     return jnp.max(jnp.real(jnp.linalg.eigvals(m)), axis=-1)
 
@@ -250,6 +252,12 @@ def dispersion(model: AbstractModel, domain: AbstractDomain | None = None, shape
     every growing wave is clipped flat from the first step. Away from the limits (every
     other Fig. 4 row) the clamp is inactive near the state and the rates are exact for
     small perturbations.
+
+    Gradients: `jax.grad` of `rates`, `fastest_rate` or `curve(k)` with respect to the
+    model's parameters works (the steady state differentiates by the implicit function
+    theorem, see `models/_steady.py`); `fastest_wavelength` is piecewise constant on a
+    lattice's discrete modes, so its gradient is zero: differentiate `curve` for a smooth
+    one.
 
     Forward Euler adds its own factor: a mode of rate r grows by 1 + dt r per step, which is
     exp(r dt) to first order in dt; the fastest mode is the same.

@@ -196,6 +196,37 @@ def test_thomas_gradients_reach_every_parameter():
         assert float(grads[name]) != 0.0, name
 
 
+def test_gradients_of_the_rates_and_the_state_match_central_differences():
+    """The steady state differentiates by the implicit function theorem (one live Newton
+    step from the root), so the fastest rate and the state have gradients."""
+    cases = [
+        (lambda r: mj.dispersion(mj.Turing(ratio=r, scale=3.0), mj.Lattice(), (32, 32)).fastest_rate, 12.0, 1e-2),
+        (lambda a: mj.dispersion(mj.Brusselator(a=a), mj.Lattice(), (32, 32)).fastest_rate, 1.5, 1e-3),
+        (lambda K: mj.dispersion(mj.Thomas(K=K), mj.Lattice(), (32, 32)).fastest_rate, 0.05, 1e-4),
+        (lambda K: mj.Thomas(K=K).homogeneous_state()[0], 0.05, 1e-4),
+        (lambda lb: mj.Morphogen(removal=1.0, lower=lb).homogeneous_state()[0], 0.5, 1e-3),  # held on it: 1
+    ]
+    for f, x, h in cases:
+        grad = float(jax.grad(f)(x))
+        fd = (float(f(x + h)) - float(f(x - h))) / (2 * h)
+        assert grad == pytest.approx(fd, rel=2e-3, abs=1e-4), (x, grad, fd)
+        assert grad != 0.0
+
+
+def test_one_and_three_dimensional_lattices():
+    """The three-point stencil's modes on a 12-cell ring are 2 cos(2 pi k / 12) - 2 with
+    wavelength 12 / k; a 3D lattice's rates match the 2D formula of the same eigenvalue."""
+    d = mj.dispersion(mj.Schnakenberg(), mj.Lattice("three-point"), (12,))
+    k = np.arange(7)
+    np.testing.assert_allclose(np.asarray(d.eigenvalues, float), 2 * np.cos(2 * np.pi * k / 12) - 2, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(d.wavelengths, float)[1:], 12 / k[1:], rtol=1e-6)
+    d3 = mj.dispersion(mj.Schnakenberg(), mj.Lattice("nineteen-point"), (6, 6, 6))
+    jac = _fd_jacobian("schnakenberg", np.asarray(d3.steady_state, float))
+    mu = np.asarray(d3.eigenvalues, float).ravel()
+    expected = [oracle.growth_rate(jac, (0.5, 10.0), m) for m in mu]
+    np.testing.assert_allclose(np.asarray(d3.rates, float).ravel(), expected, rtol=1e-3, atol=1e-4)
+
+
 def test_vmap_over_parameters_matches_one_by_one():
     ratios = jnp.asarray([3.0, 4.2, 12.0, 40.0])
     batched = jax.vmap(lambda r: mj.dispersion(mj.Turing(ratio=r, scale=3.0), mj.Lattice(), (32, 32)))(ratios)

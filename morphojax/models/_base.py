@@ -125,7 +125,8 @@ class AbstractModel(eqx.Module):
         damped semismooth Newton method finds one (under `jit` and `vmap` too), starting
         from `guess` (one value per species), the closed form or 1 per species, clipped
         into the limits (see `morphojax/models/_steady.py`). Several states may exist:
-        `guess` picks the nearest one Newton's method reaches.
+        `guess` picks the nearest one Newton's method reaches. Differentiable in the
+        parameters (by the implicit function theorem).
 
         Raises a ValueError (an equinox runtime error inside `jit`) when no steady state
         within the limits was found, for example when the reaction's own state lies beyond

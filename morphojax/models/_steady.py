@@ -161,13 +161,22 @@ def _polished(model, x, lo, hi):
 def solve(model, guess=None):
     """(state (species, *cells), converged (*cells), residual max |F| (*cells)): a
     homogeneous steady state of `model` within its limits (see the module docstring).
-    Works traced; a model with scalar parameters gives cells of shape (1, 1)."""
+    Works traced; a model with scalar parameters gives cells of shape (1, 1).
+
+    Differentiable in the model's parameters by the implicit function theorem: the search
+    runs on stopped gradients, then one Newton step of the live model from the root, whose
+    value is the root again (F = 0 there) and whose derivative is -G^-1 dF/dparameters."""
     x = _start(model, guess)
     if is_concrete(x, model):  # a closed form that already holds needs no Newton loop
         lo, hi = _limits(model, x)
         if bool(jnp.all(_done(x, *_newton_step(model, x, lo, hi)))):
             return _polished(model, x, lo, hi)
-    return _newton(model, x)
+        return _newton(model, x)
+    frozen = jax.tree_util.tree_map(lambda v: jax.lax.stop_gradient(v) if eqx.is_array(v) else v, model)
+    x, ok, size = _newton(frozen, jax.lax.stop_gradient(x))
+    lo, hi = _limits(model, x)
+    F, delta = _newton_step(model, x, lo, hi)
+    return jnp.where(ok, x + delta, x), ok, size
 
 
 def homogeneous_values(model, guess=None) -> tuple:
