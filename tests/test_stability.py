@@ -184,6 +184,16 @@ def test_thomas_defaults_are_turing_unstable():
         mj.Thomas(K=-1.0)
 
 
+def test_thomas_preset_settles_near_the_predicted_wavelength():
+    experiment = mj.preset("thomas", quick=True)
+    assert mj.PRESETS["thomas"].figure == "paper 003 section II.C"
+    u = np.asarray(mj.run_experiment(experiment, seed=0).state.arrays()[0])
+    d = mj.describe(u)
+    assert d.finite and d.pattern in ("spots", "inverted spots"), d
+    predicted = float(mj.dispersion(mj.Thomas(), mj.Lattice(), u.shape).fastest_wavelength)
+    assert d.wavelength == pytest.approx(predicted, rel=0.2)
+
+
 def test_thomas_gradients_reach_every_parameter():
     state = mj.State.from_arrays([np.full((6, 6), 37.0), np.linspace(24.0, 26.0, 36).reshape(6, 6)])
 

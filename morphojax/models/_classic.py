@@ -292,8 +292,9 @@ class Thomas(AbstractReaction):
 
     Defaults: Murray's a = 150, b = 100, alpha = 1.5, rho = 13, K = 0.05, whose state
     (37.74, 25.16) is Turing-unstable for Dv / Du > 27.0; Du = 0.5 and Dv = 20 (ratio 40)
-    give spots of wavelength about 8 cells on the nine-point stencil, growing at about
-    0.13 per unit time (`mj.dispersion` checks both).
+    give a fastest mode of wavelength about 8 cells on the nine-point stencil, growing at
+    about 0.13 per unit time (`mj.dispersion`), which settles into spots of low u (the
+    `thomas` preset).
     """
 
     species: ClassVar[tuple[str, ...]] = ("u", "v")

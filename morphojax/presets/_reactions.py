@@ -1,6 +1,6 @@
-"""The classic reactions of paper 003 section II.C (and the Brusselator it names) forming
-their Turing patterns: `morphojax run fitzhugh-nagumo`, `gierer-meinhardt`, `schnakenberg`,
-`brusselator`.
+"""The classic reactions of paper 003 section II.C (and the Brusselator and Thomas's model
+it names) forming their Turing patterns: `morphojax run fitzhugh-nagumo`, `gierer-meinhardt`,
+`schnakenberg`, `brusselator`, `thomas`.
 
 Paper 003 prints the equations but no parameters or pictures, so each preset runs the
 model's defaults (see their docstrings: values inside the Turing-unstable regime, chosen by
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from .._experiment import Experiment, Initial, Phase
 from .._initial import STEADY_NOISE, around
-from ..models import Brusselator, FitzHughNagumo, GiererMeinhardt, Schnakenberg
+from ..models import Brusselator, FitzHughNagumo, GiererMeinhardt, Schnakenberg, Thomas
 from ._registry import ExperimentPreset, register
 
 REACTIONS = {
@@ -24,6 +24,7 @@ REACTIONS = {
     "gierer-meinhardt": (GiererMeinhardt, 0.035, "Gierer-Meinhardt activator-inhibitor: hexagonal spots"),
     "schnakenberg": (Schnakenberg, 0.02, "Schnakenberg (paper 003 II.C.3): hexagonal spots"),
     "brusselator": (Brusselator, 0.02, "Brusselator (named in paper 003 II.C): hexagonal spots"),
+    "thomas": (Thomas, 0.015, "Thomas's substrate inhibition (named in paper 003 II.C): spots of low u"),
 }
 TIME, QUICK_TIME = 150.0, 60.0
 
