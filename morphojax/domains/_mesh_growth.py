@@ -40,6 +40,7 @@ SLOTS = 4  # the neighbour table's slots are padded to a multiple of this (fewer
 
 
 def triangle_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """The area of each triangle `f` (F, 3) of the vertices `v` (V, 3)."""
     return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
 
 
