@@ -57,12 +57,12 @@ def photo_palette(rgb, values, k: int = 3, seed: int = 0, max_points: int = 2000
     return sorted(stops)
 
 
-def gradient_from_photo(source, crop=None, k: int = 3, pigment: str = "dark", seed: int = 0):
-    """A `Gradient` of a photo's `k` main colours (see `Gradient.from_photo`)."""
+def photo_stops(source, crop=None, k: int = 3, pigment: str = "dark", seed: int = 0) -> list:
+    """The colour stops of a photo's `k` main colours, positions stretched to [0, 1] (see
+    `Gradient.from_photo`, which builds its gradient from them)."""
     from PIL import Image, ImageOps
 
     from ._checks import check_choice
-    from ._render import Gradient
 
     check_choice(pigment, "pigment", ("dark", "light"))
     if isinstance(source, (str, Path)):
@@ -104,4 +104,4 @@ def gradient_from_photo(source, crop=None, k: int = 3, pigment: str = "dark", se
     if len(stops) < 2 or span <= 0:
         raise ValueError("Gradient.from_photo: the photo has fewer than two distinct colours")
     # stretched to [0, 1]: the lowest value of a field takes the lightest (pigment "dark")
-    return Gradient([((p - positions.min()) / span, c) for p, c in stops])
+    return [((p - positions.min()) / span, c) for p, c in stops]

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from PIL import Image
 
-from ._render import _rgb, colormap_table, normalise
+from ._colours import _rgb, colormap_table, normalise
 from .domains._hex import ROW_HEIGHT
 
 

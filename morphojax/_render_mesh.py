@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ._render import colormap_table
+from ._colours import colormap_table
 
 
 def vertex_colours(values, cmap="inferno", vmin=None, vmax=None) -> np.ndarray:
