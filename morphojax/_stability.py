@@ -132,6 +132,9 @@ def operator_modes(domain: AbstractDomain, shape=None, modes: int | None = None)
     """(eigenvalues, wavelengths) of the domain's operator, one per mode (float64 NumPy):
     see the module docstring for each kind of domain. `shape` is the lattice's (rows, cols)
     (one length per axis); `modes` the number of a mesh's lowest modes."""
+    if modes is not None and not isinstance(domain, Mesh):
+        raise ValueError(f"dispersion: modes= counts a Mesh's lowest modes; a {type(domain).__name__} uses every mode "
+                         "of its shape")
     if isinstance(domain, Lattice):
         return _lattice_modes(domain, shape)
     if isinstance(domain, Mesh):

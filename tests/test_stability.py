@@ -294,6 +294,8 @@ def test_bad_input_is_a_value_error():
         mj.dispersion(mj.Turing(ratio=np.full((4, 4), 12.0)), mj.Lattice(), (4, 4))
     with pytest.raises(ValueError, match="anisotropic"):
         mj.dispersion(mj.Turing(), mj.Lattice(anisotropic="a", polarity=0.3), (4, 4))
+    with pytest.raises(ValueError, match="modes= counts a Mesh's lowest modes"):
+        mj.dispersion(mj.Turing(), mj.Lattice(), (4, 4), modes=3)
     with pytest.raises(ValueError, match="turing_space: unknown parameter 'speed'"):
         mj.turing_space(mj.Turing(), mj.Lattice(), vary={"speed": [1.0]}, shape=(8, 8))
     with pytest.raises(ValueError, match="'dt' is a run's setting"):
@@ -329,6 +331,24 @@ def test_turing_space_agrees_with_dispersion_member_by_member(tmp_path):
                             shape=(16, 16))
     assert plane.unstable.any() and not plane.unstable.all()
     assert plane.image().width > 100
+
+
+def test_turing_space_chunks_share_one_compiled_program(monkeypatch):
+    """Members run CHUNK at a time, the last chunk padded with its last member, so every
+    chunk reuses one traced program; results equal the unchunked ones."""
+    from morphojax import _turing_space
+
+    vary = {"ratio": np.linspace(3.0, 40.0, 10)}
+    whole = mj.turing_space(mj.Turing(scale=3.0), mj.Lattice(), vary=vary, shape=(16, 16))
+    traces = []
+    inner = _turing_space.linear_stability
+    monkeypatch.setattr(_turing_space, "linear_stability", lambda *a: traces.append(1) or inner(*a))
+    monkeypatch.setattr(_turing_space, "CHUNK", 4)
+    chunked = mj.turing_space(mj.Turing(scale=3.0), mj.Lattice(), vary=vary, shape=(16, 16))
+    assert len(traces) == 1  # three chunks (4, 4, 2 + 2 padding), one trace
+    np.testing.assert_array_equal(chunked.unstable, whole.unstable)
+    np.testing.assert_allclose(chunked.wavelength, whole.wavelength, rtol=1e-6)
+    np.testing.assert_allclose(chunked.rate, whole.rate, rtol=1e-6)
 
 
 # ---- the simulator agrees with the prediction -----------------------------------------------
