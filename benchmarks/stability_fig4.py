@@ -34,7 +34,7 @@ import numpy as np
 
 jax.config.update("jax_enable_x64", True)
 
-import morphojax as mj  # noqa: E402
+import morphojax as mj
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "results" / "stability.md"

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp

@@ -175,7 +175,7 @@ def solve(model, guess=None):
     frozen = jax.tree_util.tree_map(lambda v: jax.lax.stop_gradient(v) if eqx.is_array(v) else v, model)
     x, ok, size = _newton(frozen, jax.lax.stop_gradient(x))
     lo, hi = _limits(model, x)
-    F, delta = _newton_step(model, x, lo, hi)
+    _, delta = _newton_step(model, x, lo, hi)
     return jnp.where(ok, x + delta, x), ok, size
 
 
