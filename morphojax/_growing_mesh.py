@@ -19,7 +19,18 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._bounds import bounds_policy
 from ._checks import as_float_array, check_choice, check_finite, check_range, is_concrete
+from ._growth import steps_done
+from ._loop import drive
+from ._plan import WholeCapacity
+from ._progress import progress_bar
+from ._state import State
+from ._status import RunStatus
+from ._step import Config
+from .domains import Mesh
+from .domains._mesh_growth import MeshGeometry
+from .solvers import as_solver
 
 EDGES = ("random", "longest")
 # the spectral radius the padded stepping meshes state (a static field: one value for the
@@ -113,9 +124,6 @@ class MeshGrowth(eqx.Module):
 
     def geometry(self, mesh, capacity: int, steps: int, dt):
         """The `MeshGeometry` after `steps` phase steps from `mesh` (its events replayed)."""
-        from .domains import Mesh
-        from .domains._mesh_growth import MeshGeometry
-
         if not isinstance(mesh, Mesh):
             raise ValueError(f"MeshGrowth grows a mesh: domain must be mj.Mesh(...) (got {type(mesh).__name__})")
         if mesh.directional is not None:
@@ -157,19 +165,11 @@ def _refuse(options, save_every):
         raise ValueError(f"MeshGrowth steps with forward Euler (the default solver), not {type(solver).__name__}")
 
 
-def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None, description=None):
-    """`simulate`'s run for `growth=MeshGrowth(...)`: (final State, RunStatus, None)."""
-    from ._bounds import bounds_policy
-    from ._growth import steps_done
-    from ._loop import drive
-    from ._plan import WholeCapacity
-    from ._progress import progress_bar
-    from ._simulate import _check_inputs
-    from ._state import State
-    from ._status import RunStatus
-    from ._step import Config
-    from .solvers import as_solver
-
+def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None, description=None, *,
+                     check_inputs):
+    """`simulate`'s run for `growth=MeshGrowth(...)`: (final State, RunStatus, None).
+    `check_inputs` is `simulate`'s own check of a run's inputs (passed down, so this module
+    does not import the entry points that call it)."""
     growth, mesh = options["growth"], options["domain"]
     _refuse(options, save_every)
     if boundary is not None:
@@ -191,7 +191,7 @@ def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None
     domain, rho = geometry.stepping_domain(rho=STATED_RHO, measure=options["check_dt"])
     slots = domain.neighbours.shape[0]
     euler = as_solver(None)  # forward Euler
-    _check_inputs(model, domain, state, steps, dt, cfg, None, False, euler)
+    check_inputs(model, domain, state, steps, dt, cfg, None, False, euler)
     max_d = float(model.max_diffusion())
 
     def check(rho, when):

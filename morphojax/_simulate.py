@@ -139,7 +139,8 @@ def _run(model, state, steps, dt, boundary, options, save_every=None, save_fn=No
     """Check the inputs, drive the loop; (final State, RunStatus, frames)."""
     o = options
     if isinstance(o["growth"], MeshGrowth):  # its operator is rebuilt between compiled chunks
-        return run_growing_mesh(model, state, steps, dt, boundary, o, save_every, description)
+        return run_growing_mesh(model, state, steps, dt, boundary, o, save_every, description,
+                                check_inputs=_check_inputs)
     domain, cfg, dt, sources, plan, solver = _prepare(
         model, state, steps, dt, o["domain"], boundary, o["stencil"], o["bounds"], o["growth"], o["sources"],
         o["key"], o["check_dt"], o["origin"], o["plan"], o["solver"], o["until"])
