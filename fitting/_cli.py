@@ -87,7 +87,7 @@ def _check_before_fitting(args, fixed: dict) -> None:
     the sizes fit in memory and the step counter, and the fixed values are ones the model takes."""
     import morphojax as mj
     from morphojax._checks import STEP_COUNTER_MAX, check_run_size, check_shape
-    from morphojax._serialise import check_output_path  # private helpers of the core, as `cli` uses them
+    from morphojax._files import check_output_path  # private helpers of the core, as `cli` uses them
 
     from ._families import FAMILIES
 

@@ -40,7 +40,8 @@ from ._simulate import rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._growing_mesh import MeshGrowth
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
-from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz, to_jsonable
+from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz
+from ._files import to_jsonable
 from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
 from ._animation import save_animation
 from ._palette import kmeans, photo_palette

@@ -13,7 +13,7 @@ import numpy as np
 from PIL import Image
 
 from ._render import to_image
-from ._serialise import write_atomically
+from ._files import write_atomically
 
 FORMATS = (".gif", ".mp4")
 

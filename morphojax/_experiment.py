@@ -24,11 +24,14 @@ import jax
 from . import _initial
 from ._checks import check_count, check_range, is_concrete
 from .domains import Lattice, as_domain
-from . import _serialise
-from ._serialise import dumps, key_from_data, key_to_data, load_npz, save_npz
+from ._colours import Gradient
+from ._files import dumps, from_jsonable, to_jsonable
+from ._serialise import (bounds_from_data, bounds_to_data, domain_from_dict, domain_to_dict, growth_from_dict,
+                         growth_to_dict, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict,
+                         save_npz, source_from_dict, source_to_dict)
 from .models import AbstractModel
 from ._simulate import simulate
-from .solvers import SteadyState, as_solver
+from .solvers import SteadyState, as_solver, solver_from_dict, solver_to_dict, until_from_dict, until_to_dict
 from ._state import State
 from ._version import __version__
 
@@ -72,13 +75,17 @@ class Initial:
             return _initial.gray_scott_state(key, shape, square=square, noise=noise, capacity=cap)
         raise ValueError(f"unknown initial kind {self.kind!r}; allowed: paper, thesis, constant, uniform, gray-scott")
 
-    def to_dict(self):
-        """Plain-data (JSON-ready) form of the initial condition (see `_serialise`)."""
-        return _serialise.initial_to_dict(self)
+    def to_dict(self) -> dict:
+        """Plain-data (JSON-ready) form of the initial condition; `Initial.from_dict` rebuilds it."""
+        return to_jsonable(dataclasses.asdict(self))
 
     @classmethod
-    def from_dict(cls, d):
-        return _serialise.initial_from_dict(d)
+    def from_dict(cls, d: dict) -> "Initial":
+        d = from_jsonable(dict(d))
+        return cls(kind=d["kind"], shape=tuple(d["shape"]),
+                   capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+                   params=tuple(tuple(p) if isinstance(p, list) else p for p in d.get("params", ())),
+                   names=tuple(d["names"]) if d.get("names") else None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,13 +160,38 @@ class Phase:
             state = state.select(self.keep)
         return state
 
-    def to_dict(self):
-        """Plain-data (JSON-ready) form of the phase (see `_serialise`)."""
-        return _serialise.phase_to_dict(self)
+    def to_dict(self) -> dict:
+        """Plain-data (JSON-ready) form of the phase, with its model, domain, growth and
+        sources; a lattice is also written as its `boundary`/`stencil` shorthands, which
+        files from before domains existed hold alone. `Phase.from_dict` rebuilds it."""
+        return to_jsonable({
+            "name": self.name, "model": model_to_dict(self.model), "steps": self.steps, "dt": self.dt,
+            "boundary": self.boundary, "stencil": self.stencil, "domain": domain_to_dict(self.domain),
+            "bounds": bounds_to_data(self.bounds),
+            "growth": growth_to_dict(self.growth) if self.growth is not None else None,
+            "sources": [source_to_dict(s) for s in self.sources],
+            "add_species": [list(p) for p in self.add_species],
+            "keep": list(self.keep) if self.keep is not None else None, "frames": self.frames,
+            "capacity": list(self.capacity) if self.capacity is not None else None,
+            "solver": solver_to_dict(self.solver), "until": until_to_dict(self.until),
+        })
 
     @classmethod
-    def from_dict(cls, d):
-        return _serialise.phase_from_dict(d)
+    def from_dict(cls, d: dict) -> "Phase":
+        d = from_jsonable(dict(d))
+        domain = domain_from_dict(d["domain"]) if d.get("domain") else None
+        return cls(
+            model=model_from_dict(d["model"]), steps=int(d["steps"]), dt=float(d["dt"]),
+            boundary=None if domain else d.get("boundary"), stencil=None if domain else d.get("stencil"),
+            domain=domain, bounds=bounds_from_data(d.get("bounds", "clip")),
+            growth=growth_from_dict(d["growth"]) if d.get("growth") else None,
+            sources=tuple(source_from_dict(s) for s in d.get("sources", [])),
+            add_species=tuple(tuple(p) for p in d.get("add_species", [])),
+            keep=tuple(d["keep"]) if d.get("keep") is not None else None,
+            frames=tuple(d["frames"]) if isinstance(d.get("frames"), list) else int(d.get("frames", 0)),
+            name=d.get("name", ""), capacity=tuple(d["capacity"]) if d.get("capacity") else None,
+            solver=solver_from_dict(d.get("solver")), until=until_from_dict(d.get("until")),
+        )
 
 
 def _phase_domain(domain, stencil, boundary):
@@ -223,14 +255,22 @@ class Experiment:
                              f"of the last phase {mesh.n_vertices}: the state is not this experiment's")
         return mesh
 
-    def to_dict(self):
+    def to_dict(self) -> dict:
         """Plain-data (JSON-ready) form of the experiment: every phase, model, growth and
-        source (see `_serialise`)."""
-        return _serialise.experiment_to_dict(self)
+        source; `Experiment.from_dict` rebuilds it."""
+        cmap = self.cmap if isinstance(self.cmap, str) else [list(s) for s in self.cmap.stops]
+        return {"name": self.name, "description": self.description, "figure": self.figure,
+                "show": self.show, "cmap": to_jsonable(cmap), "initial": self.initial.to_dict(),
+                "phases": [p.to_dict() for p in self.phases]}
 
     @classmethod
-    def from_dict(cls, d):
-        return _serialise.experiment_from_dict(d)
+    def from_dict(cls, d: dict) -> "Experiment":
+        cmap = d.get("cmap", "inferno")
+        if isinstance(cmap, list):
+            cmap = Gradient([(p, tuple(c)) for p, c in cmap])
+        return cls(name=d["name"], initial=Initial.from_dict(d["initial"]),
+                   phases=tuple(Phase.from_dict(p) for p in d["phases"]), description=d.get("description", ""),
+                   figure=d.get("figure", ""), show=d.get("show", "b"), cmap=cmap)
 
 
 # Phases and experiments are pytrees: models, growth and sources are their leaves (so an

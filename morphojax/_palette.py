@@ -67,7 +67,7 @@ def photo_stops(source, crop=None, k: int = 3, pigment: str = "dark", seed: int 
     check_choice(pigment, "pigment", ("dark", "light"))
     if isinstance(source, (str, Path)):
         from ._checks import check_memory
-        from ._serialise import check_regular_file
+        from ._files import check_regular_file
 
         check_regular_file(source, "image")
         try:

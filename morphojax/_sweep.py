@@ -42,7 +42,8 @@ from ._initial import initial_state
 from .models import AbstractModel
 from ._bounds import bounds_policy
 from .solvers import Euler, SteadyState, as_solver, until_to_dict
-from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict, to_jsonable
+from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict
+from ._files import to_jsonable
 from ._state import State
 from ._sweep_members import DT, GROWTH_RATE, label, member_model, sweep_members, with_growth_rate
 from ._sweep_result import SweepResult, member_table, species_index

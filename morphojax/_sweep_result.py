@@ -22,8 +22,8 @@ from ._descriptors import describe
 from ._initial import initial_state
 from .models import AbstractModel
 from ._render import png_path, tile_montage
-from ._serialise import (bounds_from_data, check_output_path, dumps, growth_from_dict, key_from_data, model_from_dict,
-                         read_npz, source_from_dict, stamp, write_npz)
+from ._serialise import bounds_from_data, growth_from_dict, key_from_data, model_from_dict, source_from_dict
+from ._files import check_output_path, dumps, read_npz, stamp, write_npz
 from ._state import State
 from ._sweep_members import DT, grid_labels, label, member_model
 

@@ -25,7 +25,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from ._render import label_font, montage, png_path, to_image
-from ._serialise import check_output_path, model_to_dict
+from ._serialise import model_to_dict
+from ._files import check_output_path
 from ._stability import linear_stability, operator_modes
 from ._sweep_members import DT, GROWTH_RATE, grid_labels, label, member_model, sweep_members
 from .domains import AbstractDomain, Lattice

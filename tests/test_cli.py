@@ -134,7 +134,7 @@ def test_console_script_is_installed():
 def test_every_command_ends_with_a_json_line(tmp_path, capsys):
     """presets and render close with a JSON line, as the other commands do; render draws a
     3D lattice's fields as slices; mesh and listing take --no-progress and the one --quiet."""
-    from morphojax._serialise import write_npz
+    from morphojax._files import write_npz
 
     assert main(["presets"]) == 0
     line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 import morphojax as mj
 from morphojax._checks import (STEP_COUNTER_MAX, check_memory, check_run_size, check_shape, check_step_counter,
                                memory_limit, parse_memory)
-from morphojax._serialise import FORMAT_VERSION, load_npz, npz_members, save_npz
+from morphojax._serialise import load_npz, save_npz
+from morphojax._files import FORMAT_VERSION, npz_members
 
 FEW = settings(max_examples=25, deadline=None, derandomize=True,
                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -138,13 +139,13 @@ def test_npz_over_the_limit_and_bombs_are_refused(tmp_path, small_limit):
 
 
 def test_decompression_bomb_is_refused_from_its_declared_size(tmp_path, monkeypatch):
-    import morphojax._serialise as ser
+    import morphojax._files as files
 
-    monkeypatch.setattr(ser, "BOMB_SIZE", 1 << 20)  # the rule at a test's size: 1 MB, not 256 MB
+    monkeypatch.setattr(files, "BOMB_SIZE", 1 << 20)  # the rule at a test's size: 1 MB, not 256 MB
     path = tmp_path / "bomb.npz"
     np.savez_compressed(path, cells=np.zeros(8 << 20, np.uint8))  # 8 MB of zeros in ~8 kB
     with pytest.raises(ValueError, match=r"expands from .* more than 200 times"):
-        ser.npz_members(path)
+        files.npz_members(path)
 
 
 def test_cli_sizes_refused_before_anything_runs(capsys, small_limit):
@@ -394,7 +395,8 @@ def test_listing_numbers_it_cannot_hold_are_refused_with_the_line(line, match):
 
 def _sweep_file(path: Path, changes=None, arrays_changes=None) -> Path:
     """A sweep file of two 8x8 members written by hand (nothing simulated)."""
-    from morphojax._serialise import model_to_dict, write_npz
+    from morphojax._serialise import model_to_dict
+    from morphojax._files import write_npz
 
     meta = {"kind": "morphojax.sweep", "names": ["ratio"], "axes": {"ratio": [4.0, 5.0]}, "members": None,
             "config": {"model": model_to_dict(mj.Turing()), "steps": 1, "dt": 0.01, "boundary": "wrap",
@@ -443,7 +445,7 @@ def test_out_folder_and_unwritable_outputs_are_refused_before_the_work(tmp_path,
 
 
 def test_files_get_the_umask_and_killed_writes_are_cleaned(tmp_path):
-    from morphojax._serialise import write_npz
+    from morphojax._files import write_npz
 
     old = os.umask(0o027)
     try:

@@ -12,7 +12,7 @@ import pytest
 
 import morphojax as mj
 import oracle
-from morphojax._serialise import dumps
+from morphojax._files import dumps
 
 SHAPE = (20, 24)  # not square: a transposed axis would show
 STEPS = 100

@@ -15,7 +15,7 @@ import pytest
 
 import dispersion_oracle as oracle
 import morphojax as mj
-from morphojax._serialise import dumps
+from morphojax._files import dumps
 
 INF = math.inf
 

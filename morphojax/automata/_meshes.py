@@ -53,7 +53,7 @@ def _vertex_colours(colour, n: int):
 
 def _written_by() -> str:
     """The version line every mesh file carries (morphojax's version and the file format number)."""
-    from .._serialise import FORMAT_VERSION
+    from .._files import FORMAT_VERSION
     from .._version import __version__
 
     return f"written by morphojax {__version__}, format {FORMAT_VERSION}"
@@ -81,7 +81,7 @@ def write_ply(path, vertices, faces, colour=None, comment: str = "morphojax") ->
     frec = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     frec["n"] = 3
     frec["i"] = faces
-    from .._serialise import write_atomically
+    from .._files import write_atomically
 
     def write(tmp):
         with open(tmp, "wb") as fh:
@@ -120,7 +120,7 @@ def write_obj(path, vertices, faces, colour=None, comment: str = "morphojax", *,
     faces name their texture vertices (`f v/vt`); with a `texture` image as well (e.g.
     `mj.texture_image(mesh, values)`), it is written beside as `{stem}_texture.png` with a material
     `{stem}.mtl` that maps it (`map_Kd`). Every file is written atomically."""
-    from .._serialise import write_atomically
+    from .._files import write_atomically
 
     path = Path(path)
     vertices = np.asarray(vertices, np.float32).reshape(-1, 3)

@@ -210,9 +210,8 @@ class YoungCA(AbstractAutomaton):
 
     def to_dict(self) -> dict:
         """Plain data to rebuild the model: `YoungCA(**ca.to_dict())`."""
-        from .._serialise import automaton_to_dict
-
-        return automaton_to_dict(self)
+        return {"species": [list(s) for s in self.species], "neighbourhood": self.neighbourhood,
+                "include_self": self.include_self, "denominator": int(self.denominator), "method": self.method}
 
     def _thresholds(self) -> tuple:
         """((T_act, T_inh), ...) per species: the radii as integer distance thresholds."""

@@ -10,7 +10,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from .._serialise import read_npz, write_npz
+from .._files import read_npz, write_npz
 from ._state import STATUS_FIELDS, Cells, make_cells
 
 FORMAT = "morphojax-cells/1"

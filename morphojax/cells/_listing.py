@@ -382,7 +382,7 @@ LISTING_BYTES = 1 << 20  # a listing is a page of commands; the thesis's longest
 
 def _read_listing_file(path: Path) -> str:
     """A listing file's text: a regular file of at most LISTING_BYTES, decoded as UTF-8 (else Latin-1)."""
-    from .._serialise import check_regular_file
+    from .._files import check_regular_file
 
     path = check_regular_file(path, "listing")
     size = path.stat().st_size

@@ -27,7 +27,7 @@ from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from .._checks import check_choice, check_range
 from .._render import _rgb, to_image
-from .._serialise import write_atomically
+from .._files import write_atomically
 from ._state import Cells
 
 STYLES = ("discs", "voronoi")

@@ -21,7 +21,8 @@ import numpy as np
 
 import morphojax as mj
 from morphojax._checks import STEP_COUNTER_MAX
-from morphojax._serialise import check_output_path, save_npz
+from morphojax._serialise import save_npz
+from morphojax._files import check_output_path
 
 from ._output import report
 

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from morphojax._render import png_path  # the one place a picture's path gets its .png
-from morphojax._serialise import check_output_path  # refused before the work, not after it
+from morphojax._files import check_output_path  # refused before the work, not after it
 
 
 def report(summary: dict, human: str, quiet: bool) -> None:

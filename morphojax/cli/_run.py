@@ -417,7 +417,7 @@ def _render(args):
 def file_kind(path: Path) -> str:
     """What a morphojax `.npz` holds: "result" (a run's species), "sweep", "automaton", "potts", "cells"
     or "solid" (a 3D lattice's fields)."""
-    from morphojax._serialise import check_regular_file, open_npz, read_metadata
+    from morphojax._files import check_regular_file, open_npz, read_metadata
 
     check_regular_file(path, "result")
     with open_npz(path, ".npz") as data:
@@ -442,7 +442,7 @@ def automaton_picture(path: Path, scale: int | None):
     """An automaton's saved cells as `morphojax ca` draws them (3D: slices)."""
     import numpy as np
 
-    from morphojax._serialise import open_npz, read_metadata
+    from morphojax._files import open_npz, read_metadata
 
     with open_npz(path, "automaton") as data:
         cells, meta = np.asarray(data["cells"]), read_metadata(data, path)

@@ -27,7 +27,7 @@ class MeshFileError(ValueError):
 
 def read_mesh_file(path) -> dict:
     """{"vertices", "faces"[, "uv", "uv_faces"][, "welded"]} of the mesh in `path` (NumPy arrays)."""
-    from .._serialise import check_regular_file
+    from .._files import check_regular_file
 
     path = Path(path)
     ext = path.suffix.lower().lstrip(".")

@@ -19,7 +19,7 @@ import numpy as np
 from PIL import Image
 
 import morphojax as mj
-from .._serialise import write_npz
+from .._files import write_npz
 from ._automaton_outputs import (automaton_stats, frames_outputs, line_chart, run_automaton, save_cells_npz,
                                  timed_run, xy_chart)
 from ._registry import AutomatonPreset, register, registered

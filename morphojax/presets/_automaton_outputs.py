@@ -24,7 +24,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 import morphojax as mj
-from .._serialise import write_npz
+from .._files import write_npz
 from ..automata import SPECIES_COLOURS
 
 

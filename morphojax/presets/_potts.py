@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 import morphojax as mj
-from .._serialise import write_npz
+from .._files import write_npz
 from ._registry import AutomatonPreset, register
 
 FIG10_J = tuple(0.5 * k for k in range(1, 37))  # appendix D: J(1,1) = J(2,2) from 0.5 to 18 in steps of 0.5
@@ -99,7 +99,7 @@ register(PottsPreset("potts-fig11", "cellular Potts model at like-type J = 3 and
 def potts_picture(path: Path, scale: int | None = None):
     """A saved Potts run (`morphojax render`): its lattice, or a montage of a series."""
     from .._checks import check_picture
-    from .._serialise import open_npz, read_metadata
+    from .._files import open_npz, read_metadata
 
     with open_npz(path, "Potts") as data:
         ids, types, meta = np.asarray(data["ids"]), np.asarray(data["types"]), read_metadata(data, path)

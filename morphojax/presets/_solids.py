@@ -20,7 +20,7 @@ import jax
 import numpy as np
 
 import morphojax as mj
-from .._serialise import write_npz
+from .._files import write_npz
 from ._registry import AutomatonPreset, register
 
 # Pearson's "worms" parameters (as the 2D preset gray-scott-worms): tubes and sheets in 3D
