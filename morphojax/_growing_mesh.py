@@ -12,6 +12,7 @@ A run with MeshGrowth is therefore eager: not under `jax.jit`, `vmap` or `grad`.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import equinox as eqx
@@ -182,7 +183,7 @@ def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None
                          "not under jax.jit, vmap or grad")
     origin = options["origin"]
     done = steps_done(state, origin)
-    geometry = growth.geometry(mesh, state.capacity[0], done, dt)
+    geometry = _resumed_geometry(mesh, growth, state.capacity[0], float(dt), done)
     if geometry.n_vertices != state.shape[0]:
         raise ValueError(f"MeshGrowth: the state has {state.shape[0]} active vertices but the mesh grown for {done} "
                          f"phase steps has {geometry.n_vertices}; pass the state this phase's run made (and its "
@@ -231,4 +232,21 @@ def run_growing_mesh(model, state, steps, dt, boundary, options, save_every=None
     finally:
         if bar is not None:
             bar.close()
+    _LAST[:] = [(mesh, growth, state.capacity[0], float(dt), done + t, copy.deepcopy(geometry))]
     return current, status, None
+
+
+# The geometry where the last run ended: a run cut into pieces (an experiment's frames and
+# checkpoints) continues from it instead of replaying its events from the phase's start.
+# Kept only for the same mesh and growth objects, capacity, dt and step: then it is the
+# replay's result, since the geometry depends on those alone.
+_LAST: list = []
+
+
+def _resumed_geometry(mesh, growth, capacity: int, dt: float, done: int):
+    """The geometry after `done` phase steps: the last run's, when it ended there, or replayed."""
+    if _LAST:
+        m, g, cap, d, step, geometry = _LAST[0]
+        if m is mesh and g is growth and (cap, d, step) == (capacity, dt, done):
+            return copy.deepcopy(geometry)
+    return growth.geometry(mesh, capacity, done, dt)

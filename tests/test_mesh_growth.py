@@ -189,6 +189,26 @@ def test_growth_events_do_not_recompile_the_chunks():
     assert out.shape[0] > growth.grown(mesh, 3 * EVERY, DT).n_vertices  # the later events divided
 
 
+def test_a_run_in_pieces_is_the_whole_run():
+    """Two pieces (the second with the phase's origin) end where one run ends, whether the
+    second continues from the geometry the first left or replays the events."""
+    from morphojax import _growing_mesh
+
+    mesh = _mesh()
+    growth = mj.MeshGrowth(0.1, divide_area=0.45, every=EVERY, dilute=True, seed=6)
+    state = _state(mesh, 3)
+    whole = mj.simulate(_diffusion(), state, 3 * EVERY, DT, domain=mesh, growth=growth)
+    first = mj.simulate(_diffusion(), state, EVERY + 3, DT, domain=mesh, growth=growth)
+    assert _growing_mesh._LAST[0][4] == EVERY + 3  # the second piece continues from this geometry
+    continued = mj.simulate(_diffusion(), first, 2 * EVERY - 3, DT, domain=mesh, growth=growth, origin=0)
+    _growing_mesh._LAST.clear()
+    replayed = mj.simulate(_diffusion(), first, 2 * EVERY - 3, DT, domain=mesh, growth=growth, origin=0)
+    assert whole.shape[0] > mesh.n_vertices
+    for piece in (continued, replayed):
+        assert piece.shape == whole.shape and int(piece.step) == int(whole.step)
+        np.testing.assert_allclose(np.asarray(piece.fields), np.asarray(whole.fields), rtol=0, atol=1e-13)
+
+
 def test_capacity_overflow_is_reported():
     """Divisions beyond the vertex capacity are not made; simulate raises, run_status says so."""
     mesh = _mesh()
