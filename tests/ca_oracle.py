@@ -18,7 +18,8 @@ SLACK = 1e-6  # a radius includes the shell at exactly its own distance
 
 
 def offsets(radius, dim, neighbourhood):
-    """All integer offsets within `radius` (excluding the origin): Euclidean or box."""
+    """All integer offsets within `radius` (excluding the origin): Euclidean (disc),
+    Chebyshev (box, Moore's) or Manhattan (diamond, von Neumann's)."""
     m = int(math.floor(radius * (1 + SLACK)))
     out = []
     for o in itertools.product(range(-m, m + 1), repeat=dim):
@@ -26,6 +27,8 @@ def offsets(radius, dim, neighbourhood):
             continue
         if neighbourhood == "disc":
             inside = sum(x * x for x in o) <= radius * radius * (1 + SLACK)
+        elif neighbourhood == "diamond":
+            inside = sum(abs(x) for x in o) <= radius * (1 + SLACK)
         else:
             inside = max(abs(x) for x in o) <= radius * (1 + SLACK)
         if inside:

@@ -38,7 +38,7 @@ from morphojax.automata._base import jit_step as _jit_step
 YOUNG = (2.30, 6.01, 1.0, -0.2)
 DUR = (3.2, 6.0, 1.0, -0.2)
 
-# (shape, species, neighbourhood, include_self): 2D and 3D, K = 1, 2, 3, both
+# (shape, species, neighbourhood, include_self): 2D and 3D, K = 1, 2, 3, all three
 # neighbourhoods, with and without the self cell, decimals that need denominators 5 to 50
 CASES = [
     ((17, 19), [YOUNG], "disc", False),
@@ -51,6 +51,10 @@ CASES = [
     # it widened periodically to whole vectors), and a 2D disc of over 255 cells (byte
     # partial sums widened)
     ((19, 45), [YOUNG, (3.0, 9.5, 1.0, -0.1)], "disc", False),
+    # von Neumann's diamonds (paper 003 Fig. 1 (b)), with the self cell as paper 003's code
+    # counts it, in 2D and 3D
+    ((16, 17), [(2.0, 5.0, 0.8, -0.2), (1.0, 3.5, 1.0, -0.15)], "diamond", True),
+    ((11, 12, 13), [(1.0, 3.0, 1.0, -0.2), (2.0, 4.0, 1.0, -0.1)], "diamond", False),
 ]
 
 

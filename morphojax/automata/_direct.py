@@ -13,7 +13,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jax import Array
 
-from ._geometry import half_width
+from ._geometry import cross_section, half_width
 
 LANE_BYTES = 32  # one AVX2 vector: the last axis of the direct sums is computed in whole vectors
 NARROW = jnp.uint8  # partial sums stay in bytes while their bound allows (4x the lanes of int32)
@@ -73,7 +73,7 @@ def ball_sums(ind: Array, thresholds, extent: int, neighbourhood: str, dtype=jnp
             else:
                 total = None
                 for o in range(-m, m + 1):
-                    sub, bound = ball(axis - 1, res - o * o if neighbourhood == "disc" else res)
+                    sub, bound = ball(axis - 1, cross_section(res, o, neighbourhood))
                     idx = (slice(None),) * axis + (slice(extent + o, extent + o + size[axis]),)
                     total = (sub[idx], bound) if total is None else add(total, (sub[idx], bound))
                 memo[(axis, res)] = total
@@ -93,7 +93,7 @@ def direct_adds(thresholds, dim: int, neighbourhood: str) -> int:
         m = half_width(res, neighbourhood)
         if axis == dim - 1:
             return 0
-        return 2 * m + sum(walk(axis + 1, res - o * o if neighbourhood == "disc" else res) for o in range(-m, m + 1))
+        return 2 * m + sum(walk(axis + 1, cross_section(res, o, neighbourhood)) for o in range(-m, m + 1))
 
     runs = max((half_width(t, neighbourhood) for t in thresholds), default=0) * 2
     return runs + sum(walk(0, t) for t in thresholds)

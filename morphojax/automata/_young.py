@@ -16,7 +16,8 @@ becomes undifferentiated when the maximum is < 0, and keeps its state when it is
 
 Units and conventions:
 - radii are in lattice cells (Euclidean distance for `neighbourhood="disc"`, the
-  Chebyshev distance max|dx_i| for Young's square boxes, `"box"`); an offset at squared
+  Chebyshev distance max|dx_i| for Young's square boxes, `"box"` (Moore's), the
+  Manhattan distance sum|dx_i| for von Neumann's diamonds, `"diamond"`); an offset at squared
   distance d2 belongs to the disc of radius r when d2 <= r^2 (1 + 1e-6), so a radius
   typed as 3 or 1.4142135 includes the shell at exactly that distance (`_geometry`);
 - the cell itself is not a neighbour unless `include_self=True` (then it counts in the
@@ -88,8 +89,9 @@ class YoungCA(AbstractAutomaton):
         out = ca.run(cells, 100, stop_at_convergence=True)   # out.cells, out.steps
 
     Radii are in lattice cells; weights are the net activation (> 0) and inhibition (< 0)
-    field of one differentiated cell. `neighbourhood` is "disc" (Euclidean, paper 002) or
-    "box" (Young's square boxes as in paper 003's code); `include_self` counts the cell
+    field of one differentiated cell. `neighbourhood` is "disc" (Euclidean, paper 002),
+    "box" (Young's square boxes as in paper 003's code, Moore's neighbourhood) or "diamond"
+    (von Neumann's, paper 003's Fig. 1 (b)); `include_self` counts the cell
     itself in its activator disc. Paper 003's code, which sums the inhibitor over the
     whole box (self included) and writes WS = Na wa - Ni wi, is
     `YoungCA([(Ra, Ri, wa - wi, -wi)], "box", include_self=True)`.
