@@ -16,6 +16,7 @@ from ._experiments import FIG4_RATIOS, leopard_row_weights
 from . import _automata  # noqa: F401  (registers the automaton presets)
 from . import _reactions  # noqa: F401  (registers the classic reactions' Turing patterns)
 from . import _lattices  # noqa: F401  (registers the square/hexagonal lattice presets)
+from . import _parameters  # noqa: F401  (registers thesis Figs. 5.3, 5.6-5.9: Listing 5.1's parameter study)
 from . import _potts  # noqa: F401  (registers the cellular Potts presets)
 from . import _anisotropy  # noqa: F401  (registers thesis Figs. 5.1 and 5.13: per-cell rates, anisotropy)
 from . import _modulation  # noqa: F401  (registers thesis Figs. 5.11 and 5.12: parameters set from a gradient)
@@ -25,6 +26,7 @@ from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets
 from . import _thesis_animals  # noqa: F401  (registers the thesis's frog and moray eel on a lattice)
 from . import _cells  # noqa: F401  (registers the thesis's cell experiments, run from its listings)
 from . import _solids  # noqa: F401  (registers the 3D lattice's solid texture)
+from . import _lundelius  # noqa: F401  (registers paper 004's own grid setting)
 from ._automaton_outputs import run_automaton, run_life_like
 
 REACTION_DIFFUSION_PRESETS = of_kind(ExperimentPreset.kind)  # snapshots of PRESETS by kind

@@ -97,6 +97,61 @@ def _young_b1(seed, quick, out, frames):
                          extra={"code_weights": {"wa": wa, "wi": wi}})
 
 
+def _young_series(cas, labels, columns, title, extra, seed, out, size, steps):
+    """Run the models `cas` from one start of paper 003's code (p = 0.015 differentiated
+    cells) for `steps` each, and write the montage of their final states (`columns` to a
+    row; each row labelled by the labels of its first and last tile) and the `.npz`."""
+    cells0 = mj.random_cells(jax.random.key(seed), (size, size), 1, mj.YOUNG_P)
+    finals, seconds = [], 0.0
+    for ca in cas:
+        result, took = timed_run(ca, cells0, steps)
+        finals.append(np.asarray(result.cells))
+        seconds += took
+    rows = [labels[i:i + columns] for i in range(0, len(labels), columns)]
+    tiles = [mj.cells_image(c, 1, max(1, 200 // size)) for c in finals]
+    if len(rows) == 1:
+        sheet = mj.montage(tiles, columns, col_labels=labels, title=title)
+    else:
+        sheet = mj.montage(tiles, columns, row_labels=[f"{r[0]} .. {r[-1]}" for r in rows], title=title)
+    sheet.save(out)
+    per = [{"label": lab, **automaton_stats(c, 1)} for lab, c in zip(labels, finals)]
+    metadata = {"automaton": "YoungCA", "params": [ca.to_dict() for ca in cas], "lattice": [size, size],
+                "seed": seed, "initial": {"p": mj.YOUNG_P}, "steps": steps, "runs": per, **extra}
+    files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata))]
+    return {"steps": steps, "lattice": [size, size], "runs": per, "seconds_run": round(seconds, 3), "files": files}
+
+
+B2_WI = tuple(round(1.05 - 0.05 * i, 2) for i in range(20))  # 1.05 (upper left) to 0.10 (bottom right)
+B2_RUN = tuple(w for w in B2_WI if w < 1.0)  # YoungCA's activator weight wa - wi must be > 0
+
+
+@_automaton("young-b2", "paper 003's Python code with its inhibitor weight wi from 0.95 to 0.10 (Moore boxes Ra = 2, "
+            "Ri = 5, wa = 1, self counted, 20 steps): small spots, larger spots, stripes, inverted spots, all on",
+            "paper 003 Fig. B2 (varying inhibitor field value)")
+def _young_b2(seed, quick, out, frames):
+    # the code's WS = Na wa - Ni wi is weight wa - wi on the inner box and -wi on the ring
+    # (see young-b1); the appendix's first two panels, wi = 1.05 and 1.00, give the inner box
+    # a weight <= 0, which YoungCA refuses (an activator weight is > 0), so they are not run
+    cas = [mj.YoungCA([(2, 5, round(1.0 - wi, 2), -wi)], "box", include_self=True, denominator=100) for wi in B2_RUN]
+    labels = [f"wi = {wi:.2f}" for wi in B2_RUN]
+    return _young_series(cas, labels, 6, "paper 003 B2: wi from 0.95 (upper left) to 0.10, t = 20, Moore boxes "
+                         "Ra 2, Ri 5, wa 1", {"wi": list(B2_RUN), "not_run": [1.05, 1.0]}, seed, out, 100, 20)
+
+
+NEIGHBOURHOOD_NAMES = {"box": "Moore box", "disc": "disc", "diamond": "von Neumann diamond"}
+
+
+@_automaton("young-neighbourhoods", "paper 003's automaton (Ra = 2, Ri = 5, wa = 1, wi = 0.2, self counted, 20 steps) "
+            "with Moore's box, the Euclidean disc and von Neumann's diamond as its neighbourhoods",
+            "paper 003 Fig. 1 (Moore and von Neumann neighbourhoods), Fig. B1")
+def _young_neighbourhoods(seed, quick, out, frames):
+    wa, wi = 1.0, 0.2
+    cas = [mj.YoungCA([(2, 5, wa - wi, -wi)], shape, include_self=True) for shape in NEIGHBOURHOOD_NAMES]
+    labels = [NEIGHBOURHOOD_NAMES[shape] for shape in NEIGHBOURHOOD_NAMES]
+    return _young_series(cas, labels, 3, "paper 003's code, Ra 2, Ri 5, wa 1, wi 0.2, t = 20",
+                         {"neighbourhoods": list(NEIGHBOURHOOD_NAMES)}, seed, out, 100, 20)
+
+
 # ---- paper 002: 3D, K species ------------------------------------------------------------
 DUR_K2 = (3.2, 6.0, 1.0, -0.2)  # R_act, R_inh, w_act, w_inh of both species (section 4.2)
 DUR_TABLE2 = ((6.0, 10.0, 1.0, -0.3), (4.0, 7.0, 1.0, -0.3), (4.3, 8.0, 1.0, -0.22))  # species 0-2 of Table 2
@@ -162,28 +217,44 @@ def _dur_fig9(seed, quick, out, frames):
 FIG7_W0 = (-0.15, -0.18, -0.20, -0.25, -0.30)  # the text names -0.15 and -0.18; the rest span Fig. 9's range
 
 
+def _dur_series(species_for, values, k, name, seed, quick, out):
+    """Paper 002's converged-state series (Figs. 7 and 8): for each value, the automaton of
+    `species_for(value)` (one denominator for the series, so the compiled run is reused)
+    run to convergence from one start, shown as middle slices with each species' share."""
+    size = 40 if quick else 100
+    cells0 = mj.random_cells(jax.random.key(seed), (size,) * 3, k)
+    runs, finals = [], []
+    t0 = time.perf_counter()
+    for value in values:
+        ca = mj.YoungCA(species_for(value), denominator=100)
+        result = ca.run(cells0, 100, stop_at_convergence=True)
+        finals.append(np.asarray(result.cells))
+        runs.append({name: value, "steps": int(result.steps), "converged": bool(result.converged),
+                     **automaton_stats(result.cells, k)})
+    seconds = time.perf_counter() - t0
+    labels = [f"{name[:2]} = {r[name]:g}: " + " / ".join(f"{100 * v:.1f}%" for v in r["volume_fractions"][:k])
+              for r in runs]
+    mj.montage([mj.cells_image(c[size // 2], k, max(1, 200 // size)) for c in finals], len(finals),
+               col_labels=labels, title=f"L = {size}, K = {k}, middle slices; volume of species 0 to {k - 1}").save(out)
+    metadata = {"automaton": "YoungCA", "species": [species_for(v) for v in values], name: list(values),
+                "lattice": [size] * 3, "seed": seed, "initial": {"p": None}, "runs": runs}
+    files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata))]
+    return {"lattice": [size] * 3, "runs": runs, "seconds_run": round(seconds, 3), "files": files}
+
+
 @_automaton("dur-fig7", "3D, L = 100, K = 2, w_0,inh from -0.15 to -0.30 (identical starts), run to convergence, "
             "with each species' share of the volume", "paper 002 Fig. 7")
 def _dur_fig7(seed, quick, out, frames):
-    size = 40 if quick else 100
-    cells0 = mj.random_cells(jax.random.key(seed), (size,) * 3, 2)
-    runs, finals = [], []
-    t0 = time.perf_counter()
-    for w0 in FIG7_W0:
-        ca = mj.YoungCA([(3.2, 6.0, 1.0, w0), DUR_K2], denominator=100)  # one compiled run for the series
-        result = ca.run(cells0, 100, stop_at_convergence=True)
-        finals.append(np.asarray(result.cells))
-        runs.append({"w0_inh": w0, "steps": int(result.steps), "converged": bool(result.converged),
-                     **automaton_stats(result.cells, 2)})
-    seconds = time.perf_counter() - t0
-    labels = [f"w0 = {r['w0_inh']:g}: {100 * r['volume_fractions'][0]:.1f}% / {100 * r['volume_fractions'][1]:.1f}%"
-              for r in runs]
-    mj.montage([mj.cells_image(c[size // 2], 2, max(1, 200 // size)) for c in finals], len(finals),
-               col_labels=labels, title=f"L = {size}, K = 2, middle slices; species 0 / species 1 volume").save(out)
-    metadata = {"automaton": "YoungCA", "species_1": DUR_K2, "species_0": {"r_act": 3.2, "r_inh": 6.0, "w_act": 1.0},
-                "w0_inh": list(FIG7_W0), "lattice": [size] * 3, "seed": seed, "initial": {"p": None}, "runs": runs}
-    files = [str(out), str(save_cells_npz(out, np.stack(finals), metadata))]
-    return {"lattice": [size] * 3, "runs": runs, "seconds_run": round(seconds, 3), "files": files}
+    return _dur_series(lambda w0: [(3.2, 6.0, 1.0, w0), DUR_K2], FIG7_W0, 2, "w0_inh", seed, quick, out)
+
+
+FIG8_W3 = FIG7_W0  # not printed; section 4.3 names the step from -0.15 to -0.18, as in Fig. 7
+
+
+@_automaton("dur-fig8-series", "3D, L = 100, K = 4 species of Table 2 with w_3,inh from -0.15 to -0.30 (identical "
+            "starts), run to convergence, with each species' share of the volume", "paper 002 Fig. 8 / Table 2")
+def _dur_fig8_series(seed, quick, out, frames):
+    return _dur_series(lambda w3: [*DUR_TABLE2, (3.2, 6.0, 1.0, w3)], FIG8_W3, 4, "w3_inh", seed, quick, out)
 
 
 # ---- paper 002 section 4.5: the order parameter against the weighted volume difference ---

@@ -1,0 +1,107 @@
+"""The papers' last figures and variants as presets (issue 38): thesis Figs. 5.3 and 5.6-5.9
+(Listing 5.1's parameter study), paper 003's Appendix B2 and its neighbourhoods, paper
+004's own grid setting. Each is checked against the rule it states: an independent NumPy
+port of paper 003's code, the paper's printed kernel, the stability limit the thesis's
+time steps keep."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import morphojax as mj
+from morphojax.domains import laplacian, max_stable_dt
+from morphojax.presets._lundelius import SIMS_SCALE, seeded_squares
+from morphojax.presets._parameters import FIG5_8_RANGE
+
+PAPER_004_KERNEL = np.array([[0.05, 0.2, 0.05], [0.2, -1.0, 0.2], [0.05, 0.2, 0.05]])
+
+
+def paper_003_code(grid, steps, wa, wi, ra=2, ri=5):
+    """Paper 003's appendix A code, vectorised with np.roll: 1 = active; Na and Ni count the
+    active cells of the (2 ra + 1) and (2 ri + 1) boxes around each cell, itself included,
+    WS = Na wa - Ni wi; WS > 0 turns a cell on, WS < 0 off, 0 keeps it. Weights compared
+    exactly in hundredths."""
+    a, i = round(wa * 100), round(wi * 100)
+    grid = np.asarray(grid, np.int64)
+    for _ in range(steps):
+        na = sum(np.roll(grid, (dy, dx), (0, 1)) for dy in range(-ra, ra + 1) for dx in range(-ra, ra + 1))
+        ni = sum(np.roll(grid, (dy, dx), (0, 1)) for dy in range(-ri, ri + 1) for dx in range(-ri, ri + 1))
+        ws = na * a - ni * i
+        grid = np.where(ws > 0, 1, np.where(ws < 0, 0, grid))
+    return grid
+
+
+def test_young_b2_is_paper_003s_code_for_every_weight(tmp_path):
+    summary = mj.PRESETS["young-b2"].run(seed=2, quick=True, out=tmp_path / "b2.png")
+    with np.load(tmp_path / "b2.npz") as data:
+        finals, meta = data["cells"], json.loads(str(data["metadata"]))
+    assert meta["wi"][0] == 0.95 and meta["wi"][-1] == 0.10 and len(meta["wi"]) == 18 == len(summary["runs"])
+    start = 1 - np.asarray(mj.random_cells(jax.random.key(2), (100, 100), 1, mj.YOUNG_P))  # the code's 1 = active
+    for wi, final in list(zip(meta["wi"], finals))[::4]:
+        np.testing.assert_array_equal(1 - final, paper_003_code(start, 20, 1.0, wi), err_msg=f"wi = {wi}")
+    active = [r["volume_fractions"][0] for r in summary["runs"]]
+    assert active[0] < 0.1 and active[-1] > 0.9  # spots at a strong inhibitor, nearly all on at a weak one
+
+
+def test_young_neighbourhoods_differ_only_in_the_shape(tmp_path):
+    mj.PRESETS["young-neighbourhoods"].run(seed=0, quick=True, out=tmp_path / "n.png")
+    with np.load(tmp_path / "n.npz") as data:
+        finals, meta = data["cells"], json.loads(str(data["metadata"]))
+    assert meta["neighbourhoods"] == ["box", "disc", "diamond"]
+    assert [p["neighbourhood"] for p in meta["params"]] == meta["neighbourhoods"]
+    assert len({f.tobytes() for f in finals}) == 3
+    # von Neumann's diamond of radius 2 has 13 cells (self included), 5 x 5 box 25
+    counts = [mj.YoungCA([(2, 5, 0.8, -0.2)], shape, include_self=True).neighbour_counts(2)[0].tolist()
+              for shape in ("box", "diamond")]
+    assert counts[0][0] == 25 and counts[1][0] == 13
+    assert counts[1][1] == 2 * 5 * 6 + 1 - 13  # the diamond of radius 5 (61 cells) less the inner one
+
+
+def test_lundelius_kernel_and_start():
+    exp = mj.preset("lundelius-fig3", quick=True)
+    seed, run = exp.phases
+    # the paper's kernel is SIMS_SCALE times the lattice's stencil: its response to one unit
+    impulse = jnp.zeros((7, 7)).at[3, 3].set(1.0)
+    assert run.domain == mj.Lattice("nine-point", "wrap")
+    response = np.asarray(laplacian(impulse, "wrap", "nine-point"))
+    np.testing.assert_allclose(SIMS_SCALE * response[2:5, 2:5], PAPER_004_KERNEL, atol=1e-6)
+    assert np.count_nonzero(response) == 9
+    assert run.model.du == SIMS_SCALE * 1.0 and run.model.dv == SIMS_SCALE * 0.5
+    state = mj.run_experiment(exp.__class__(exp.name, exp.initial, (seed,)), seed=0).state
+    b = seeded_squares(exp.initial.shape[0])
+    np.testing.assert_array_equal(np.asarray(state.array("v")), b)
+    np.testing.assert_array_equal(np.asarray(state.array("u")), np.ones_like(b))
+
+
+def test_listing_5_1_series_keep_the_thesis_time_steps():
+    """Figs. 5.6 and 5.9 lower dt where the rates are large (0.8 and 0.6; 0.4 and 0.2), as the
+    thesis does, and every member keeps the eight-neighbour sum's limit; Fig. 5.8's map
+    ramps Du from 0 in the first column to 0.8 in the last."""
+    for figure in ("thesis-fig5.3", "thesis-fig5.6", "thesis-fig5.7", "thesis-fig5.9"):
+        for member in mj.PRESETS[figure].members:
+            phase = mj.preset(member).phases[-1]
+            rate = max(float(np.max(phase.model.da)), float(np.max(phase.model.db)))
+            assert phase.dt <= max_stable_dt(rate, "moore"), member
+            assert (phase.dt == 1.0) == (rate * 12 <= 2.0), member
+    assert [mj.preset(m).phases[0].dt for m in mj.PRESETS["thesis-fig5.9"].members] == [1, 1, 1, 1, 0.4, 0.2]
+    phase = mj.preset("thesis-fig5.8", quick=True).phases[0]
+    da = np.asarray(phase.model.da)
+    np.testing.assert_allclose(da[0], np.linspace(*FIG5_8_RANGE, da.shape[1]), rtol=1e-6)
+    assert np.all(da == da[:1]) and phase.dt <= max_stable_dt(FIG5_8_RANGE[1], "moore")
+
+
+def test_dur_fig8_series_species_1_takes_room_when_species_3_weakens(tmp_path):
+    """Paper 002 section 4.3 on Fig. 8: changing species 3 has little effect on the others,
+    except species 1 in the step from -0.15 to -0.18; species 3 itself shrinks as its
+    inhibitor strengthens."""
+    fig8 = mj.PRESETS["dur-fig8-series"].run(seed=0, quick=True, out=tmp_path / "f8.png")
+    share = {r["w3_inh"]: r["volume_fractions"] for r in fig8["runs"]}
+    assert all(r["converged"] for r in fig8["runs"]) and len(share) == 5
+    assert share[-0.18][1] > share[-0.15][1] + 0.05
+    species_3 = [share[w][3] for w in sorted(share, reverse=True)]
+    assert all(a > b for a, b in zip(species_3, species_3[1:]))
+    assert max(abs(share[w][0] - share[-0.2][0]) for w in share) < 0.05  # species 0 barely moves
