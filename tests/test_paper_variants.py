@@ -94,6 +94,34 @@ def test_listing_5_1_series_keep_the_thesis_time_steps():
     assert np.all(da == da[:1]) and phase.dt <= max_stable_dt(FIG5_8_RANGE[1], "moore")
 
 
+def test_the_seed_audit_counts_its_rows_and_names_registered_presets():
+    """docs/audit.md: one row per figure with one of four statuses; its counts table agrees
+    with the rows, and every preset a row names (a backticked name with a hyphen and no
+    wildcard) is registered."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "audit.md").read_text(encoding="utf-8")
+    sections = re.split(r"^## ", text, flags=re.M)[1:]
+    statuses = ("present", "partial", "decided otherwise", "missing")
+    counted, stated = {}, {}
+    for section in sections:
+        title, lines = section.splitlines()[0], section.splitlines()
+        rows = [line.split("|")[1:-1] for line in lines if line.startswith("| ") and not line.startswith("| figure")]
+        if title == "Counts":
+            stated = {r[0].strip(): [int(c) for c in r[1:]] for r in rows[1:]}
+            continue
+        status = [r[1].strip() for r in rows]
+        assert set(status) <= set(statuses), (title, set(status) - set(statuses))
+        counted[title.split(",")[0]] = [len(rows)] + [status.count(s) for s in statuses]
+        for r in rows:
+            for name in re.findall(r"`([a-z0-9.\-]+)`", r[2]):
+                if "-" in name:
+                    assert name in mj.PRESETS, (title, name)
+    assert stated.pop("all") == [sum(c) for c in zip(*counted.values())]
+    assert stated == counted
+
+
 def test_dur_fig8_series_species_1_takes_room_when_species_3_weakens(tmp_path):
     """Paper 002 section 4.3 on Fig. 8: changing species 3 has little effect on the others,
     except species 1 in the step from -0.15 to -0.18; species 3 itself shrinks as its
