@@ -240,7 +240,7 @@ class Listing:
         of being guessed.
         """
         from .._progress import progress_bar
-        from ._simulate import BUCKET_SIZE, MAX_ROOM, PIECES, needed_room, simulate_cells
+        from ._simulate import MAX_ROOM, PIECES, needed_room, simulate_cells
 
         iterations = [int(i) for i in iterations]
         if not iterations or any(b <= a for a, b in zip(iterations, iterations[1:])) or iterations[0] < 0:
@@ -255,11 +255,13 @@ class Listing:
         grow_cells, grow_search = capacity is None and divides, max_neighbours is None or bucket_size is None
         if capacity is None:
             capacity = int(cells.count) + (int(cells.count) // 4 + 64 if divides else 0)
-        # every iteration pays for each slot of the neighbour list: start from the room the
-        # prepattern needs (8 on a square grid, 6 on a hexagonal one), grown when it overflows
+        # every iteration pays for each slot of the neighbour list, and each full build for
+        # each candidate it reads: start from the room the prepattern needs (8 partners on a
+        # square grid, 6 on a hexagonal one; the fullest three buckets in a row, plus one
+        # cell a bucket), grown when it overflows
         need = needed_room(cells)
         room = [max(need[0] + 2, 8) if max_neighbours is None else max_neighbours,
-                max(need[1], BUCKET_SIZE) if bucket_size is None else bucket_size]
+                need[1] + 1 if bucket_size is None else bucket_size]
         last = iterations[-1]
         piece = max(1, last // PIECES)
         ends = sorted(set(iterations) | set(range(piece, last, piece)))

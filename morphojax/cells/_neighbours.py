@@ -1,12 +1,23 @@
 """Neighbours within the influence radius (thesis 4.2), from a hashed cell list, kept as a
-Verlet list that is rebuilt only when cells were added or moved far enough.
+Verlet list that is patched where cells were born or moved, and rebuilt only when too
+many did at once.
 
 Why not jax-md's `partition.neighbor_list`: jax-md 0.2.29 (the current release) imports
 flax, e3nn-jax, optax, jraph and pymatgen on `import jax_md`, hundreds of megabytes for
 one function; its list also needs a box that bounds every cell, while the thesis's
-growth experiments (Figs. 6.3-6.6) grow without one. The search here is the same
-algorithm in ~80 lines:
+growth experiments (Figs. 6.3-6.6) grow without one.
 
+The list keeps one rule: it holds every pair of live cells whose *reference* positions
+lie within `radius` (the influence radius + the skin), both ways (j in i's row exactly
+when i is in j's), and each cell is within half the skin of its own reference. Then every
+pair now within the influence radius is in the list. Each iteration, the cells that broke
+the rule (moved more than half the skin from their reference, or were born since) are
+"movers": each takes its position as its reference, its row is recomputed by a brute
+search over every live cell, and the rows of its old and new partners drop or gain it.
+That costs (movers x capacity); a full build costs (capacity x 9 x bucket_size), so the list is
+rebuilt only when more than `patch_sizes[-1]` cells moved at once.
+
+The full build:
 1. the live cells' bounding box is cut into at most `table_size` square buckets of side
    `radius` (wider when the cells spread too far for that, so unbounded growth needs no
    box), and the cells are sorted by bucket;
@@ -16,9 +27,10 @@ algorithm in ~80 lines:
 3. the neighbours are packed into `max_neighbours` slots per cell (unused slots hold the
    capacity, an index past every cell).
 
-Running out of room (three buckets in a row holding more than 3 x `bucket_size` cells, or a
-cell with more than `max_neighbours` neighbours) sets `overflow`: the simulator records the iteration, so a
-missed neighbour is never silent.
+Running out of room (three buckets in a row holding more than 3 x `bucket_size` cells, or
+a cell with more than `max_neighbours` partners) sets `overflow`: the simulator records the
+iteration, so a missed neighbour is never silent; growing the room is done outside jit
+(`Listing.run`, `needed_room`).
 """
 
 from __future__ import annotations
@@ -29,48 +41,163 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-_OFFSETS = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1)], np.int32)
+PATCH_SIZES = (8, 64)  # movers a patch handles per branch; more than the last: a full build
 
 
 class NeighbourList(eqx.Module):
-    """Per cell the indices of the cells within `radius` + skin at the last build.
+    """Per cell the indices of its partners: the cells whose reference position was within
+    `radius` (influence radius + skin) of its own (a symmetric relation).
 
     Attributes:
-        index: (capacity, max_neighbours) int32; unused slots hold `capacity`.
-        reference: (capacity, 2) the positions at the last build.
-        built_count: the number of live cells at the last build.
-        overflow: bool, the last build ran out of room.
+        index: (capacity, max_neighbours) int32; unused slots (anywhere in a row: patches
+            leave holes) hold `capacity`.
+        reference: (capacity, 2) each cell's position when its row was last computed.
+        built_count: the number of live cells the list covers (cells born later have no
+            row yet).
+        overflow: bool, a build or patch ran out of room (sticky until the next full build).
+        builds: int32, full builds since the first one (patches are not counted).
     """
 
     index: Array
     reference: Array
     built_count: Array
     overflow: Array
+    builds: Array
 
 
 class Search(eqx.Module):
     """How to search (static): the list radius (influence radius + skin), the Verlet skin,
-    and the sizes of the buffers."""
+    and the sizes of the buffers: `max_neighbours` slots per cell, `bucket_size` cells per
+    bucket on average over three in a row (a full build reads 3 x `bucket_size` candidates
+    from each of a cell's three rows of buckets), `table_size` buckets at most, and the
+    movers a patch handles."""
 
     radius: float = eqx.field(static=True)
     skin: float = eqx.field(static=True)
     max_neighbours: int = eqx.field(static=True)
     bucket_size: int = eqx.field(static=True)
     table_size: int = eqx.field(static=True)
+    patch_sizes: tuple[int, ...] = eqx.field(static=True, default=PATCH_SIZES)
 
-    def build(self, position: Array, count: Array) -> NeighbourList:
+    def build(self, position: Array, count: Array, builds=0) -> NeighbourList:
         index, overflow = find_neighbours(position, count, self.radius, self.max_neighbours,
                                           self.bucket_size, self.table_size)
-        return NeighbourList(index, position, count, overflow)
+        return NeighbourList(index, position, jnp.asarray(count, jnp.int32), overflow,
+                             jnp.asarray(builds, jnp.int32))
+
+    def movers(self, neighbours: NeighbourList, position: Array, count: Array) -> Array:
+        """(capacity,) bool: the live cells that broke the list's rule, born since it was
+        last updated or moved more than half the skin from their reference."""
+        cell = jnp.arange(position.shape[0])
+        drift = jnp.sum((position - neighbours.reference) ** 2, axis=1)
+        return (cell < count) & ((cell >= neighbours.built_count) | (drift > (self.skin / 2) ** 2))
 
     def update(self, neighbours: NeighbourList, position: Array, count: Array) -> NeighbourList:
-        """The list, rebuilt when cells were added or one moved more than half the skin
-        since the last build (then no pair can have come within the influence radius
-        unseen)."""
-        alive = jnp.arange(position.shape[0]) < count
-        moved = jnp.max(jnp.where(alive, jnp.sum((position - neighbours.reference) ** 2, axis=1), 0.0))
-        stale = (count != neighbours.built_count) | (moved > (self.skin / 2) ** 2)
-        return jax.lax.cond(stale, lambda: self.build(position, count), lambda: neighbours)
+        """The list, keeping its rule for cells at `position` (the live ones, `count`):
+        unchanged when no cell broke it, patched when a few did, rebuilt when more than
+        `patch_sizes[-1]` did."""
+        movers = self.movers(neighbours, position, count)
+        n = jnp.sum(movers)
+        sizes = self.patch_sizes
+        branch = jnp.where(n == 0, 0, 1 + jnp.searchsorted(jnp.asarray(sizes), n))  # len(sizes) + 1: build
+        keep = [lambda nb, m: nb]
+        patches = [lambda nb, m, size=size: patch(nb, m, position, count, self.radius, size) for size in sizes]
+        rebuild = [lambda nb, m: self.build(position, count, nb.builds + 1)]
+        return jax.lax.switch(branch, keep + patches + rebuild, neighbours, movers)
+
+
+def patch(neighbours: NeighbourList, movers: Array, position: Array, count: Array, radius: float,
+          size: int) -> NeighbourList:
+    """The list with the rows of `movers` (at most `size` of them) recomputed at their
+    current positions, by a brute search over every live cell's reference, and each mover
+    dropped from or added to the rows of the other cells it left or reached. The rows of
+    cells that did not move change in those slots only."""
+    index = neighbours.index
+    capacity, slots = index.shape
+    cell = jnp.arange(capacity)
+    who = first_true(movers, size)                                        # (M,) movers, then capacity
+    real = who < capacity
+    at = jnp.minimum(who, capacity - 1)
+    reference = neighbours.reference.at[who].set(position[at], mode="drop")
+
+    # the movers' new rows: every live cell whose reference lies within `radius` of theirs
+    dx = reference[None, :, 0] - reference[at, 0][:, None]
+    dy = reference[None, :, 1] - reference[at, 1][:, None]
+    hit = (dx * dx + dy * dy < radius * radius) & (cell[None, :] < count) & (cell[None, :] != who[:, None])
+    hit &= real[:, None]
+    rank = running_count(hit) - 1
+    column = jnp.where(hit & (rank < slots), rank, slots)
+    new = jnp.full((size, slots + 1), capacity, jnp.int32)
+    new = new.at[jnp.arange(size)[:, None], column].set(jnp.broadcast_to(cell, hit.shape).astype(jnp.int32),
+                                                         mode="drop")[:, :slots]
+    overflow = jnp.any(jnp.sum(hit, axis=1) > slots)
+
+    # the partners that did not move themselves: drop the mover from the rows of those it
+    # left, add it to the rows of those it reached (the movers' own rows are replaced)
+    old = jnp.where(real[:, None], index[at], capacity)
+    settled = (cell < capacity) & ~movers
+    old_stays = settled[jnp.minimum(old, capacity - 1)] & (old < capacity)
+    new_stays = settled[jnp.minimum(new, capacity - 1)] & (new < capacity)
+    left = old_stays & ~jnp.any(old[:, :, None] == new[:, None, :], axis=2)
+    reached = new_stays & ~jnp.any(new[:, :, None] == old[:, None, :], axis=2)
+    mover = jnp.broadcast_to(who[:, None], old.shape).ravel()
+
+    target = jnp.where(left, old, capacity).ravel()
+    rows = index[jnp.minimum(target, capacity - 1)]
+    holds = rows == mover[:, None]
+    slot = jnp.argmax(holds, axis=1)
+    index = index.at[jnp.where(jnp.any(holds, axis=1), target, capacity), slot].set(capacity, mode="drop")
+
+    target = jnp.where(reached, new, capacity).ravel()
+    rank = _rank_among_equals(target)
+    rows = index[jnp.minimum(target, capacity - 1)]
+    free = rows == capacity
+    nth_free = jnp.cumsum(free, axis=1) - 1
+    fits = free & (nth_free == rank[:, None])
+    slot = jnp.argmax(fits, axis=1)
+    placed = jnp.any(fits, axis=1)
+    overflow |= jnp.any((target < capacity) & ~placed)
+    index = index.at[jnp.where(placed, target, capacity), slot].set(mover.astype(jnp.int32), mode="drop")
+
+    index = index.at[who].set(new, mode="drop")
+    return NeighbourList(index, reference, jnp.asarray(count, jnp.int32), neighbours.overflow | overflow,
+                         neighbours.builds)
+
+
+def first_true(flags: Array, size: int) -> Array:
+    """The indices of the first `size` True entries of a 1D `flags`, in order, then
+    len(flags) (`jnp.nonzero(flags, size=size, fill_value=len(flags))`, by `running_count`)."""
+    n = flags.shape[0]
+    rank = running_count(flags) - 1
+    seat = jnp.where(flags & (rank < size), rank, size)
+    return jnp.full(size + 1, n, jnp.int32).at[seat].set(jnp.arange(n, dtype=jnp.int32))[:size]
+
+
+def running_count(flags: Array, block: int = 128) -> Array:
+    """Running count of True along the last axis (an inclusive cumulative sum), for long
+    rows: within blocks of `block` entries as a product with a triangular matrix, then the
+    blocks' totals the same way (on a CPU, XLA's cumsum is several times slower); exact in
+    float32 while rows are shorter than 2**24."""
+    n = flags.shape[-1]
+    if n <= block:
+        return _row_cumsum(flags.reshape(-1, n)).reshape(flags.shape)
+    pad = -n % block
+    lead = flags.shape[:-1]
+    blocks = jnp.pad(flags, [(0, 0)] * len(lead) + [(0, pad)]).reshape(*lead, -1, block).astype(jnp.float32)
+    within = blocks @ jnp.triu(jnp.ones((block, block), jnp.float32))
+    count = within.shape[-2]
+    before = within[..., -1] @ jnp.triu(jnp.ones((count, count), jnp.float32), k=1)  # totals of earlier blocks
+    total = jnp.round(within + before[..., None]).astype(jnp.int32)
+    return total.reshape(*lead, n + pad)[..., :n]
+
+
+def _rank_among_equals(values: Array) -> Array:
+    """For each entry, how many earlier entries hold the same value."""
+    order = jnp.argsort(values, stable=True)
+    ordered = values[order]
+    first = jnp.searchsorted(ordered, ordered, side="left")
+    rank = jnp.arange(values.shape[0]) - first
+    return jnp.zeros_like(rank).at[order].set(rank)
 
 
 def find_neighbours(position: Array, count: Array, radius: float, max_neighbours: int,

@@ -14,7 +14,7 @@ from .._checks import as_float_array, check_count, check_finite, check_range, is
 from .._progress import progress_bar
 from .._status import SimulationError
 from ..models import AbstractModel
-from ._neighbours import Search, table_size_for
+from ._neighbours import PATCH_SIZES, Search, table_size_for
 from ._neighbours import needed_room as _needed_room
 from ._rules import Chance, Change, Divide, React, Rule, check_rules
 from ._space import as_domain
@@ -22,7 +22,7 @@ from ._state import Cells
 from ._step import Settings, contacts, harmonic_rate, step
 
 INFLUENCE_RADIUS = 3.0  # thesis 4.2: the six hexagonal or eight Moore neighbours of unit-radius cells
-SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3, rebuilt after a move of 0.15
+SKIN = 0.3  # Verlet skin: the list holds pairs within 3.3; a cell that moves 0.15 is patched in again
 MAX_NEIGHBOURS = 20  # a packed or hexagonal tissue has 6-12 cells within 3.3; crowded growth more
 BUCKET_SIZE = 8  # cells per bucket of side 3.3 (a packed tissue averages 3.4)
 PIECES = 50  # a progress bar moves in 50 pieces of the run
@@ -64,7 +64,10 @@ def simulate_cells(
         domain: None (unbounded), (width, height) / `Box`, or "packed" / `Packed(area)`.
         division_limit: cells with more neighbours than this do not divide (4.8.1).
         influence_radius: neighbours are the cells closer than this (4.2).
-        max_neighbours, bucket_size: room in the neighbour search per cell and per bucket.
+        max_neighbours, bucket_size: room in the neighbour search: partners per cell, and
+            cells per bucket on average over three in a row (a full build reads 3 x
+            bucket_size candidates from each of a cell's three rows of buckets;
+            `needed_room` says what cells need).
         throw: raise `SimulationError` (naming the iteration) when the run blew up, a
             division found no room or the neighbour search overflowed. Inside `jit` or
             `vmap` nothing is raised: read `cells.ok` / `cells.message()`.
@@ -113,7 +116,8 @@ def simulate_cells(
         influence_radius=float(influence_radius),
         division_limit=division_limit,
         search=Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=int(max_neighbours),
-                      bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity)),
+                      bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity),
+                      patch_sizes=PATCH_SIZES),
     )
     if check_dt and steps and is_concrete(cells, dt):
         _check_dt(cells, settings)

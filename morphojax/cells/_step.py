@@ -96,21 +96,47 @@ def divide(cells: Cells, parents: Cells, wants: Array, direction: Array, iterati
     state: the thesis lists newborns while evaluating rules, 4.1 steps 2 and 7), one unit
     away at the parent's polarity + `direction`; so a child differs from its parent by the
     parent's update of this iteration, which is what lets a tissue grown from one cell
-    (Fig. 6.3) break its symmetry."""
+    (Fig. 6.3) break its symmetry.
+
+    An iteration without divisions writes nothing, and one with at most `FEW_DIVISIONS`
+    writes only their seats; the children are the same either way."""
+    wanted = jnp.sum(wants)
+    branch = jnp.where(wanted == 0, 0, jnp.where(wanted <= FEW_DIVISIONS, 1, 2))
+    return jax.lax.switch(branch, [lambda c: c,
+                                   lambda c: _append(c, parents, wants, direction, iteration, FEW_DIVISIONS),
+                                   lambda c: _append(c, parents, wants, direction, iteration, None)], cells)
+
+
+FEW_DIVISIONS = 16  # divisions an iteration writes seat by seat; more: every buffer is written whole
+
+
+def _append(cells: Cells, parents: Cells, wants: Array, direction: Array, iteration: Array,
+            size: int | None) -> Cells:
+    """`divide` for the first `size` cells in `wants` (all of them: None)."""
     capacity = cells.capacity
-    rank = jnp.cumsum(wants) - 1
+    if size is None:
+        def pick(values, axis=0):
+            return values
+        wanting = wants
+    else:
+        source = jnp.nonzero(wants, size=size, fill_value=capacity)[0]
+
+        def pick(values, axis=0):
+            return jnp.take(values, source, axis=axis, mode="clip")
+        wanting = source < capacity
+    rank = jnp.cumsum(wanting) - 1
     seat = cells.count + rank
-    fits = wants & (seat < capacity)
+    fits = wanting & (seat < capacity)
     target = jnp.where(fits, seat, capacity)
-    angle = parents.polarity + direction
-    child_position = parents.position + jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
+    angle = pick(parents.polarity) + pick(direction)
+    child_position = pick(parents.position) + jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
 
     def put(buffer, values, axis=0):
         if axis == 0:
             return buffer.at[target].set(values, mode="drop")
         return buffer.at[:, target].set(values, mode="drop")
 
-    overflowed = jnp.any(wants & ~fits)
+    overflowed = jnp.any(wanting & ~fits)
     return eqx.tree_at(
         lambda c: (c.position, c.polarity, c.polarised, c.concentration, c.diffusion, c.birth, c.fixed,
                    c.count, c.overflow_step),
@@ -118,11 +144,11 @@ def divide(cells: Cells, parents: Cells, wants: Array, direction: Array, iterati
         (
             put(cells.position, child_position),
             put(cells.polarity, angle),
-            put(cells.polarised, parents.polarised),
-            put(cells.concentration, parents.concentration, axis=1),
-            put(cells.diffusion, parents.diffusion, axis=1),
-            put(cells.birth, jnp.full_like(cells.birth, iteration + 1)),
-            put(cells.fixed, jnp.zeros_like(cells.fixed)),  # children always move (so they can make room)
+            put(cells.polarised, pick(parents.polarised)),
+            put(cells.concentration, pick(parents.concentration, 1), axis=1),
+            put(cells.diffusion, pick(parents.diffusion, 1), axis=1),
+            put(cells.birth, jnp.full(target.shape, iteration + 1, cells.birth.dtype)),
+            put(cells.fixed, jnp.zeros(target.shape, bool)),  # children always move (so they can make room)
             cells.count + jnp.sum(fits).astype(jnp.int32),
             jnp.where((cells.overflow_step < 0) & overflowed, iteration, cells.overflow_step),
         ),
