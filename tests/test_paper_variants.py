@@ -94,6 +94,25 @@ def test_listing_5_1_series_keep_the_thesis_time_steps():
     assert np.all(da == da[:1]) and phase.dt <= max_stable_dt(FIG5_8_RANGE[1], "moore")
 
 
+def test_parameter_maps_ramp_their_parameters_within_the_limit():
+    """Figs. 5.5 and 7.14: each map ramps its parameters linearly along its axes (x across
+    the columns, y down the rows) and steps within the eight-neighbour sum's limit for its
+    fastest rate."""
+    from morphojax.presets._parameters import MAPS
+
+    for name, (_, x, y, _) in MAPS.items():
+        phase = mj.preset(name, quick=True).phases[0]
+        params = phase.model.parameters()
+        for axis, spec in (("x", x), ("y", y)):
+            if spec is None:
+                continue
+            values = np.asarray(params[spec[0]])
+            line = values[0] if axis == "x" else values[:, 0]
+            np.testing.assert_allclose(line, np.linspace(spec[1], spec[2], line.size), rtol=1e-6, err_msg=name)
+        rate = max(float(np.max(params["da"])), float(np.max(params["db"])))
+        assert phase.dt <= max_stable_dt(rate, "moore") < phase.dt + 0.05 or phase.dt == 1.0, name
+
+
 def test_the_seed_audit_counts_its_rows_and_names_registered_presets():
     """docs/audit.md: one row per figure with one of four statuses; its counts table agrees
     with the rows, and every preset a row names (a backticked name with a hyphen and no

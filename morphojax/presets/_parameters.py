@@ -19,13 +19,24 @@ start; the thesis's random numbers are not reproduced.
   Per-cell rates diffuse in the flux form (each link carries the harmonic mean of its two
   cells' rates); dt 0.2, the largest the fastest column allows, for 25,000 iterations (the
   base experiment's simulated time, 5000).
+- Fig. 5.5: four more maps, (a) Du against Dv, (b) alpha against beta, (c) alpha alone,
+  (d) beta alone. Their ranges are not printed; these are chosen around section 5.2.3's
+  findings (patterns for alpha in [10, 17] and beta in [10, 20]; Du and Dv in a linear
+  relation): Du 0.02-0.40 against Dv 0.002-0.02, alpha 8-20 against beta 8-24, each at the
+  largest dt its fastest rate allows, for the base experiment's simulated time.
+- Fig. 7.14 (section 7.3): the map of Du (0.00-0.80 across, Fig. 5.8's range) against U's
+  saturation limit L_U (`upper_a`, 10 at the top to 3 at the bottom; not printed either):
+  where U stays below its limit the pattern is the standard one, below the steady state's
+  U = 4 the reagents settle to constants.
 """
 
 from __future__ import annotations
 
+import math
+
 from .._experiment import Experiment, Initial, Phase
 from .._parameter_map import parameter_map
-from ..domains import Lattice
+from ..domains import Lattice, max_stable_dt
 from ..models import Bard
 from ._lattices import LISTING_5_1
 from ._registry import ExperimentPreset, register
@@ -98,3 +109,40 @@ def _fig5_8(quick):
 
 register(ExperimentPreset("thesis-fig5.8", "parameter map: Du from 0.00 to 0.80 across one lattice (negative spots, "
                           "labyrinths, larger spots)", "thesis Fig. 5.8", _fig5_8))
+
+
+MAPS = {  # name: (figure, x, y, what)
+    "thesis-fig5.5-a": ("thesis Fig. 5.5 (a)", ("da", 0.02, 0.40), ("db", 0.002, 0.02), "Du against Dv"),
+    "thesis-fig5.5-b": ("thesis Fig. 5.5 (b)", ("alpha", 8.0, 20.0), ("beta", 8.0, 24.0), "alpha against beta"),
+    "thesis-fig5.5-c": ("thesis Fig. 5.5 (c)", ("alpha", 8.0, 20.0), None, "alpha alone"),
+    "thesis-fig5.5-d": ("thesis Fig. 5.5 (d)", ("beta", 8.0, 24.0), None, "beta alone"),
+    "thesis-fig7.14": ("thesis Fig. 7.14", ("da", *FIG5_8_RANGE), ("upper_a", 10.0, 3.0), "Du against U's limit L_U"),
+}
+
+
+def _map(name):
+    figure, x, y, what = MAPS[name]
+
+    def build(quick):
+        shape = (48, 48) if quick else (128, 128)
+        rates = {**LISTING_5_1, x[0]: x[2]} if x[0] in ("da", "db") else LISTING_5_1
+        if y is not None and y[0] in ("da", "db"):
+            rates = {**rates, y[0]: max(y[1:])}
+        # the largest multiple of 0.05 within the fastest rate's limit (0.2 for Du 0.8, as Fig. 5.9)
+        dt = min(1.0, math.floor(20 * max_stable_dt(max(rates["da"], rates["db"]), "moore")) / 20)
+        steps = 5000 if quick else int(round(LISTING_STEPS / dt))
+        model = parameter_map(Bard(**LISTING_5_1), shape, x=x, y=y)
+        ranges = f"{x[0]} {x[1]:g} to {x[2]:g} across" + (f", {y[0]} {y[1]:g} (top) to {y[2]:g} (bottom)" if y else "")
+        return listing_5_1(name, None, dt, "b", f"{figure}'s parameter map on {shape[0]}x{shape[1]} cells: {ranges} "
+                           f"(ranges chosen, not printed), Listing 5.1 otherwise, Moore sum, no-flux, dt {dt:g}, "
+                           f"{steps:,} iterations", figure, quick, shape=shape, steps=steps, model=model)
+
+    return build
+
+
+for _name, (_figure, _x, _y, _what) in MAPS.items():
+    register(ExperimentPreset(_name, f"parameter map: {_what} across one lattice (Listing 5.1; ranges chosen)", _figure,
+                              _map(_name)))
+register(ExperimentPreset("thesis-fig5.5", "parameter maps: Du x Dv, alpha x beta, alpha, beta (four tiles)",
+                          "thesis Fig. 5.5", members=tuple(n for n in MAPS if n.startswith("thesis-fig5.5")),
+                          row_labels=("V",), col_labels=("(a) Du x Dv", "(b) alpha x beta", "(c) alpha", "(d) beta")))
