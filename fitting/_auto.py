@@ -3,17 +3,25 @@
 Screening runs each family's global design only (no local search, no intervals) on a lattice
 of half the rows and columns (at least 24; wavelengths are in cells, so the statistics stay
 comparable), with two seeds; oriented families screen on the full lattice, since a small
-torus admits only the few stripe directions and spacings that close around it. The `top` families with the lowest penalised screening loss are
-then fitted in full and the best of those is returned.
+torus admits only the few stripe directions and spacings that close around it. The `top`
+families first in the screen's order are then fitted in full and the best of those is
+returned.
 
-Screening ranks by a penalised synthetic likelihood. Every family's `score` is the distance
-between the target's and the fit's statistics with the config's fixed per-group noise scales
-(the same yardstick for every family; each family's own measured noise would make a noisier
-family look better). The distance sums about one unit of squared noise per statistics group,
-so it plays the part of -2 log L; the penalty is BIC's k log(n) with k the number of fitted
-parameters and n the number of statistics groups: penalised = score + k log(n). A family
-whose every design point is off the target's scale (grid-scale, or more than 20% off its
-wavelength: it cannot reach it inside its bounds) screens last, rejected, and says so.
+The screen orders the families by what they were not fitted to (`screen="heldout"`, the
+default): the texture distance of each family's best design point's samples (its seeds'
+fields, kept from the design, no second run) to the held-out tile of the target
+(`fitting._verdict.heldout_distance`), the measure that ranks the full fits. With
+`screen="loss"` it orders them by a penalised synthetic likelihood, the rule before: every
+family's `score` is the distance between the target's and the fit's statistics with the
+config's fixed per-group noise scales (the same yardstick for every family; each family's
+own measured noise would make a noisier family look better), which sums about one unit of
+squared noise per statistics group, so it plays the part of -2 log L; the penalty is BIC's
+k log(n) with k the number of fitted parameters and n the number of statistics groups:
+penalised = score + k log(n). Both are recorded in each screened family's ranking row
+(`heldout`, `penalised`). A family whose every design point is off the target's scale
+(grid-scale, or more than 20% off its wavelength: it cannot reach it inside its bounds)
+screens last, rejected, and says so. `benchmarks/screen_photolike.py` compares the two
+rules on the photo-like suite.
 
 The full fits are ranked by how well they predict what they were not fitted to: the
 held-out distance of `fitting._verdict` (the fit's samples against the tile of the target
@@ -93,18 +101,24 @@ def shows_stripes(field, target_stripes) -> tuple[bool, float]:
     return bool(coherence >= target_stripes[1] - STRIPE_MATCH and off <= STRIPE_ANGLE), coherence
 
 
-def fit_auto(target, names, *, families=None, top=2, progress, assess, **options):
-    """Screen, fit the best `top` in full, rank; see the module docstring. `assess` sets a
-    full fit's held-out report and rejection (`fitting._pipeline`)."""
-    chosen = families_for(target.field, families)
-    if int(top) < 1:
-        raise ValueError(f"top must be an integer >= 1 (got {top!r})")
+SCREEN_RULES = ("heldout", "loss")
+
+
+def screen(target, names, families, options, score=None, rule: str = "heldout", progress=None) -> list:
+    """Every family's global design on the screening lattice (module docstring); one row per
+    family, ordered: rejected families last, then by `rule`: "heldout", the held-out distance
+    of the design's best point's samples (`score(samples)`, `fitting._verdict.heldout_distance`)
+    or "loss", the penalised training loss."""
+    if rule not in SCREEN_RULES:
+        raise ValueError(f"screen rule must be one of {', '.join(SCREEN_RULES)} (got {rule!r})")
+    if rule == "heldout" and score is None:
+        raise ValueError("screen rule 'heldout' needs the held-out scorer")
     cfg = options["stats"]
     rows, cols = options["shape"]
     half = (max(24, rows // 2), max(24, cols // 2))
     fixed = options.get("fixed") or {}
     screened = []
-    for f in chosen:
+    for f in families:
         fam = FAMILIES[f]
         mine = _names_for(fam, names)
         # oriented families screen on the full lattice: a small torus admits only a few
@@ -115,14 +129,31 @@ def fit_auto(target, names, *, families=None, top=2, progress, assess, **options
                 "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
         res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)
         lam, lam_t = res.config["wavelength"], res.config["target_wavelength"]
+        samples = res.fields.get("samples")
+        heldout = float(score(samples)) if score is not None and samples is not None else math.nan
         screened.append({"family": f, "score": res.score, "penalised": penalised(res.score, len(mine), cfg),
-                         "params": res.params, "k": len(mine), "stage": "screen", "seconds": res.timings["total"],
+                         "heldout": heldout, "params": res.params, "k": len(mine), "stage": "screen",
+                         "seconds": res.timings["total"],
                          "rejected": f"wavelength {lam:.1f} cells at its best design point against the "
                                      f"target's {lam_t:.1f}: off the target's scale inside its bounds"
                          if off_scale(lam, lam_t) else None})
     # a family whose every design point is off the target's scale screens last
-    screened.sort(key=lambda r: (r["rejected"] is not None,
-                                 r["penalised"] if np.isfinite(r["penalised"]) else math.inf))
+    key = "heldout" if rule == "heldout" else "penalised"
+    screened.sort(key=lambda r: (r["rejected"] is not None, r[key] if np.isfinite(r[key]) else math.inf))
+    return screened
+
+
+def fit_auto(target, names, *, families=None, top=2, progress, assess, score=None, screen_rule="heldout",
+             **options):
+    """Screen, fit the best `top` in full, rank; see the module docstring. `assess` sets a
+    full fit's held-out report and rejection, `score` gives samples' held-out distance
+    (`fitting._pipeline`)."""
+    chosen = families_for(target.field, families)
+    if int(top) < 1:
+        raise ValueError(f"top must be an integer >= 1 (got {top!r})")
+    cfg = options["stats"]
+    fixed = options.get("fixed") or {}
+    screened = screen(target, names, chosen, options, score, screen_rule, progress)
     stripes = stripe_angle(target.field)
     to_fit = screened[: int(top)]
     oriented = [r for r in screened if FAMILIES[r["family"]].oriented]
@@ -143,10 +174,13 @@ def fit_auto(target, names, *, families=None, top=2, progress, assess, **options
                 "rejected": r.rejected} for ok, c, p, r in full]
     done = {r["family"] for r in ranking}
     ranking += [{"family": r["family"], "loss": r["score"], "penalised": r["penalised"], "k": r["k"],
-                 "params": r["params"], "stage": "screen", "seconds": r["seconds"], "rejected": r["rejected"]}
+                 "params": r["params"], "stage": "screen", "seconds": r["seconds"], "rejected": r["rejected"],
+                 "heldout": r["heldout"]}
                 for r in screened if r["family"] not in done]
     best = full[0][-1]
     best.ranking = ranking
+    best.config["screen"] = {"rule": screen_rule, "order": [
+        {k: r[k] for k in ("family", "heldout", "penalised", "rejected")} for r in screened]}
     best.timings["auto_screen"] = float(sum(r["seconds"] for r in screened))
     best.timings["auto_fits"] = float(sum(item[-1].timings["total"] for item in full))
     return best

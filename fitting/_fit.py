@@ -81,9 +81,12 @@ def _stats_at(sim, space, cfg, theta, keys):
 # traced arguments.
 @eqx.filter_jit
 def _design_batch(sim, space, cfg, thetas, keys, tstats):
+    """(loss, wavelength, fields) of each design point: its seeds' fields are kept, so the
+    best point's samples need no second run (`auto` scores them on the held-out tile)."""
     def one(theta):
-        st = _stats_at(sim, space, cfg, theta, keys)
-        return distance(st, tstats, cfg), st["wavelength"]
+        fields = jax.vmap(lambda k: sim.run(space.as_dict(theta), k))(keys)
+        st = mean_stats(fields, cfg)
+        return distance(st, tstats, cfg), st["wavelength"], fields
 
     return jax.vmap(one)(thetas)
 
@@ -256,6 +259,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
                for i in range(0, len(padded), batch_size)]
         vals = np.concatenate([np.asarray(o[0]) for o in out])[: len(thetas)]
         lams = np.concatenate([np.asarray(o[1]) for o in out])[: len(thetas)]
+        fields = np.concatenate([np.asarray(o[2]) for o in out])[: len(thetas)]
+        for theta, f in zip(thetas, fields):  # each point's seeds, for the best one's samples
+            samples[np.asarray(theta, np.float32).tobytes()] = f
         # a point off the target's scale (grid-scale, or more than 20% off its wavelength)
         # ranks after every point that is not (`fitting._verdict.off_scale`)
         vals = np.where(off_scale(lams, float(tstats["wavelength"])), vals + DEGENERATE_PENALTY, vals)
@@ -263,6 +269,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     length = names.index(length_scale) if length_scale in names else None
     angle = names.index("angle") if stripes is not None else None
+    samples = {}  # the design points' seed fields, by their parameters
 
     def evaluate(unit_points, move):
         """Losses at the points; with `move`, each point is also moved to the target's
@@ -337,9 +344,13 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         timings["total"] = time.perf_counter() - t_start
         score = float(losses[best]) - (DEGENERATE_PENALTY if off_scale(wavelengths[best], float(tstats["wavelength"]))
                                        else 0.0)
+        best_fields = samples.get(np.asarray(thetas[best], np.float32).tobytes())
+        fields = {"target": np.asarray(target.field)}
+        if best_fields is not None:
+            fields["samples"] = best_fields
         return FitResult(params=params, model=sim.build(params), loss=score, noise_floor=float("nan"),
                          history=[{k: v for k, v in row.items() if k != "z"} for row in rec.rows], timings=timings,
-                         stats={}, report={}, design=design_rows, fields={"target": np.asarray(target.field)},
+                         stats={}, report={}, design=design_rows, fields=fields,
                          config={"fit": names, "screen": True, "wavelength": float(wavelengths[best]),
                                  "target_wavelength": float(tstats["wavelength"])},
                          target=target.describe(), score=score)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from functools import partial
 from pathlib import Path
 
 from ._auto import fit_auto
@@ -23,7 +24,7 @@ from ._result import FitResult
 from ._simulator import Simulator
 from ._stats import StatsConfig
 from ._target import Target, load_target
-from ._verdict import degenerate, judge, split_target, verdict_text
+from ._verdict import degenerate, heldout_distance, judge, split_target, verdict_text
 
 # One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
 DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
@@ -60,7 +61,8 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
         boundary: str = "wrap", species=None, batch_size: int = 8, noise_seeds: int = 8,
         learning_rate: float = 0.05, length_scale: str | None = "family", progress: bool | None = DEFAULTS["progress"],
-        intervals: bool = True, families=None, top: int = 2, simulator: Simulator | None = None) -> FitResult:
+        intervals: bool = True, families=None, top: int = 2, screen: str = "heldout",
+        simulator: Simulator | None = None) -> FitResult:
     """Fit parameters of `model` so its texture statistics match `target`'s.
 
     Args:
@@ -97,6 +99,9 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         intervals: compute the Laplace credible intervals (`fitting.laplace_intervals`).
         families, top: for "auto", the families screened (default all) and how many are
             fitted in full.
+        screen: for "auto", how the screen orders the families: "heldout" (default), the
+            held-out distance of each family's best design point's samples, or "loss", the
+            penalised training loss (`fitting._auto`).
 
     Returns:
         `FitResult` (see its docstring): `result.convincing` and `result.verdict` say whether
@@ -120,8 +125,9 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     assess = _assessor(target.field, heldout, apart, seed)
     auto = isinstance(model, str) and model == "auto"
     if auto:
+        score = partial(heldout_distance, whole=target.field, heldout=heldout)
         result = fit_auto(training, _names(fit), families=families, top=top, progress=mode, assess=assess,
-                          **options)
+                          score=score, screen_rule=screen, **options)
     else:
         result = assess(fit_one(training, model, _names(fit), progress=mode, simulator=simulator, **options))
     result.verdict = verdict_text(result.family, result.heldout, result.rejected, auto)

@@ -214,16 +214,31 @@ def within_yardsticks(distance: float, floor: float, noise: float) -> bool:
     return bool(distance <= FLOOR_FACTOR * floor and distance <= NOISE_FACTOR * noise)
 
 
+def _scale_of(whole) -> float:
+    lam = target_wavelength(whole)
+    return lam if np.isfinite(lam) else 10.0  # a flat target: the photos' resampled scale
+
+
+def _sample_distances(samples, heldout, lam: float) -> tuple[dict, float]:
+    """(each group's mean distance, the mean distance) of `samples` to the held-out tile."""
+    target = features(heldout, lam)
+    per_sample = [group_distances(features(s, lam), target) for s in samples]
+    groups = {g: float(np.mean([p[g] for p in per_sample])) for g in GROUPS}
+    return groups, float(np.mean([_rms(p) for p in per_sample]))
+
+
+def heldout_distance(samples, whole, heldout) -> float:
+    """The texture distance of a fit's `samples` to the held-out tile (`judge`'s `distance`,
+    without the yardsticks): what `auto`'s screen ranks families by."""
+    return _sample_distances(samples, heldout, _scale_of(whole))[1]
+
+
 def judge(samples, whole, heldout, held_out: bool, seed: int = 0) -> dict:
     """The held-out report of a fit: its distance (mean over `samples`), the floor, the noise,
     the groups, the target's and the fit's wavelengths, and whether the fit is convincing
     (before the degenerate check, which `verdict` adds)."""
-    lam = target_wavelength(whole)
-    lam = lam if np.isfinite(lam) else 10.0  # a flat target: the photos' resampled scale
-    target = features(heldout, lam)
-    per_sample = [group_distances(features(s, lam), target) for s in samples]
-    groups = {g: float(np.mean([p[g] for p in per_sample])) for g in GROUPS}
-    distance = float(np.mean([_rms(p) for p in per_sample]))
+    lam = _scale_of(whole)
+    groups, distance = _sample_distances(samples, heldout, lam)
     first, second = halves(whole)
     floor = texture_distance(first, second, lam)
     noise = noise_distance(heldout, lam, seed)

@@ -411,7 +411,7 @@ def test_family_loss_and_length_scale(name):
     start[j] = np.clip(start[j] * factor, space.low[j], space.high[j])
     thetas = jnp.asarray(np.stack([[truth[n] for n in names], start]), jnp.float32)
     keys = jax.random.split(jax.random.key(1), 2)
-    losses, lams = (np.asarray(v) for v in _design_batch(sim, space, cfg, thetas, keys, tstats))
+    losses, lams, _ = (np.asarray(v) for v in _design_batch(sim, space, cfg, thetas, keys, tstats))
     assert losses[0] < losses[1]
     if name == "gray-scott" or fam.length is None:
         return
@@ -471,6 +471,20 @@ def test_auto_ranks_every_screened_family():
     assert isinstance(data["convincing"], bool) and data["verdict"] == res.verdict
     assert res.timings["total"] >= res.timings["auto_screen"] + res.timings["auto_fits"]
     assert set(data["intervals"]) == set(res.params) and isinstance(data["undetermined"], list)
+    # the screen orders the families by its samples' held-out distance (rejected ones last),
+    # and the first is the one fitted in full; with screen="loss", by the penalised loss
+    order = data["config"]["screen"]["order"]
+    assert data["config"]["screen"]["rule"] == "heldout" and order[0]["family"] == res.family
+    assert all(np.isfinite(r["heldout"]) for r in order)
+    kept = [r for r in order if r["rejected"] is None]
+    assert [r["heldout"] for r in kept] == sorted(r["heldout"] for r in kept)
+    by_loss = fitting.fit(field, model="auto", families=["turing", "reinforcement"], top=1, shape=(24, 24), seeds=2,
+                          n_design=6, rounds=0, keep=1, max_steps=0, noise_seeds=3, progress=False, screen="loss",
+                          intervals=False)
+    order = [r for r in by_loss.config["screen"]["order"] if r["rejected"] is None]
+    assert [r["penalised"] for r in order] == sorted(r["penalised"] for r in order)
+    with pytest.raises(ValueError, match="screen rule must be one of heldout, loss"):
+        fitting.fit(field, model="auto", families=["turing"], shape=(24, 24), screen="best", progress=False)
 
 
 # ---- oriented coats -----------------------------------------------------------------------
