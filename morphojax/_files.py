@@ -117,16 +117,21 @@ def write_npz(path, **arrays) -> Path:
     return write_atomically(path, write)
 
 
+def make_folder_of(path: Path) -> None:
+    """Create the folder `path` goes in; one that cannot be made is a ValueError naming `path`."""
+    try:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ValueError(f"cannot write {path}: {err.strerror or err}") from None
+
+
 def write_atomically(path, write) -> Path:
     """Write a file so that a crash never destroys the last good one: `write(temporary)`
     fills a temporary beside `path` (same suffix), which is flushed to disk and then replaces
     `path` in one step; a temporary whose writing failed is removed."""
     path = Path(path)
     check_output_path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ValueError(f"cannot write {path}: {err.strerror or err}") from None
+    make_folder_of(path)
     remove_stale_temporaries(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.{os.getpid()}-", suffix=path.suffix, dir=path.parent)

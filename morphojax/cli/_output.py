@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from morphojax._render import png_path  # the one place a picture's path gets its .png
-from morphojax._files import check_output_path  # refused before the work, not after it
+from morphojax._files import check_output_path, make_folder_of  # refused before the work, not after it
 
 
 def report(summary: dict, human: str, quiet: bool) -> None:
@@ -40,8 +40,5 @@ def picture_path(path, name: str = "out") -> Path:
         path = Path(path) / f"{name}.png"
     out = png_path(path)
     check_output_path(out)
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ValueError(f"cannot write {out}: {err.strerror or err}") from None
+    make_folder_of(out)
     return out
