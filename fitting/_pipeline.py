@@ -29,7 +29,7 @@ from ._verdict import degenerate, heldout_distance, judge, split_target, verdict
 # One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
 DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
             "design_seeds": 2, "seed": 0, "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs",
-            "max_steps": 40, "binarise": True, "orientation": True, "progress": None}
+            "max_steps": 40, "binarise": True, "orientation": True, "progress": None, "screen": "heldout"}
 
 
 def progress_default() -> bool:
@@ -61,7 +61,7 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
         boundary: str = "wrap", species=None, batch_size: int = 8, noise_seeds: int = 8,
         learning_rate: float = 0.05, length_scale: str | None = "family", progress: bool | None = DEFAULTS["progress"],
-        intervals: bool = True, families=None, top: int = 2, screen: str = "heldout",
+        intervals: bool = True, families=None, top: int = 2, screen: str = DEFAULTS["screen"],
         simulator: Simulator | None = None) -> FitResult:
     """Fit parameters of `model` so its texture statistics match `target`'s.
 
