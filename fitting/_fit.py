@@ -259,9 +259,10 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
                for i in range(0, len(padded), batch_size)]
         vals = np.concatenate([np.asarray(o[0]) for o in out])[: len(thetas)]
         lams = np.concatenate([np.asarray(o[1]) for o in out])[: len(thetas)]
-        fields = np.concatenate([np.asarray(o[2]) for o in out])[: len(thetas)]
-        for theta, f in zip(thetas, fields):  # each point's seeds, for the best one's samples
-            samples[np.asarray(theta, np.float32).tobytes()] = f
+        if screen_only:  # each point's seeds, for the best one's samples (`auto` scores them)
+            fields = np.concatenate([np.asarray(o[2]) for o in out])[: len(thetas)]
+            for theta, f in zip(thetas, fields):
+                samples[np.asarray(theta, np.float32).tobytes()] = f
         # a point off the target's scale (grid-scale, or more than 20% off its wavelength)
         # ranks after every point that is not (`fitting._verdict.off_scale`)
         vals = np.where(off_scale(lams, float(tstats["wavelength"])), vals + DEGENERATE_PENALTY, vals)
@@ -269,7 +270,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     length = names.index(length_scale) if length_scale in names else None
     angle = names.index("angle") if stripes is not None else None
-    samples = {}  # the design points' seed fields, by their parameters
+    samples = {}  # a screen's design points' seed fields, by their parameters
 
     def evaluate(unit_points, move):
         """Losses at the points; with `move`, each point is also moved to the target's
