@@ -1,46 +1,44 @@
 """The off-lattice cell simulator (thesis ch. 4) against the thesis's C++ and a NumPy port.
 
-The thesis's Table A.1 times its C++ simulator on one core of a 1.8 GHz Core i7-4500U:
-- the leopard (Fig. 7.21, Listing A.18): a 50 x 58 hex grid (2,900 cells) growing to
-  6,228 in 14,000 iterations (dt 0.1, packed domain, division limit 6, division with
-  probability 1e-4 from iteration 4,000): 22.298 s;
-- the moray eel (Fig. 7.18, Listing A.17): a 200 x 100 square grid (20,000 cells), 5,000
-  iterations, no division: 21.122 s.
-morphojax runs the shipped listings with `Listing.run` (compiled; the compile time, the
-first run less the median of three re-runs, is reported apart) and at `Listing.run`'s
-default capacity, which follows the tissue (a piece of the run that outgrows it runs
-again with 1.5x the room; every iteration pays for the buffers' size, so a guess of
-4 x 2,900 = 11,600 cost the leopard twice its time; `--leopard-capacity` fixes one). Listing A.18 as printed
-sets only 9 of its 32 seed cells (the other 23 are named in a comment, "omitted for
-brevity"); the benchmark restores them (`set cell N chemical V conc 10` lines), as a
-preset would, and runs it with seed 0. The moray runs as published (`use seed 1`).
+The thesis's Table A.1 times its C++ simulator on one core of a 1.8 GHz Core i7-4500U. Every
+row with a shipped listing runs here (`--only rows`, or `leopard` / `moray` alone) with
+`Listing.run` (compiled; the compile time, the first run less the median of the re-runs, is
+reported apart) for the thesis's own number of iterations, at `Listing.run`'s default
+capacity, which follows the tissue (a piece of the run that outgrows it runs again with
+1.5x the room). The rows without a listing (5.3, 5.11-5.13, 7.1, 7.4, 7.13, 7.15: lattice
+experiments, automata, or listings the thesis does not print) are named and skipped.
+Table A.1 swaps the cell-count and iteration columns of rows 5.1, 5.2, 5.3, 5.11, 5.12 and
+5.13 (Fig. 5.1 is 225 cells for 1,000 iterations, as its listing places them); the table
+here quotes them the right way round. Listing A.18 as printed sets only 9 of its 32 seed
+cells (the other 23 are named in a comment, "omitted for brevity"); the benchmark restores
+them (`set cell N chemical V conc 10` lines), as a preset would, and runs it with seed 0.
+The moray runs as published (`use seed 1`). The speed-up over the thesis compares seconds
+for the same number of iterations.
 
-Every speed is also a ratio against the NumPy port in benchmarks/cells_numpy.py (cKDTree
-pairs, np.add.at, rebuilt every iteration), timed in the same process on the same cells:
-`--numpy-steps` iterations from the listing's prepattern, and for the growing leopard from
-snapshots at 0, 1/4, 1/2, 3/4 and the end of the run (the NumPy run's seconds are then
-estimated from the per-iteration times at the snapshots, trapezoid rule). Before timing,
-the script checks once that the port and morphojax agree after 10 iterations of a small
-run (and 4 iterations with divisions) to 1e-4, so the baseline is the same computation.
-The speed-up over the thesis compares seconds per iteration (for the full runs, the same
-as comparing the runs' seconds).
+The NumPy port in benchmarks/cells_numpy.py (cKDTree pairs, np.add.at, rebuilt every
+iteration) is checked once to agree with morphojax after 10 iterations of a small run (and
+4 with divisions) to 1e-4, and timed in the scaling runs up to `--numpy-max-cells`.
 
 Then, per-iteration times against the number of cells (hex grids of ~1k to 100k cells):
 a static reaction-diffusion run (Bard's reaction, no division, no domain: the neighbour
-list is never rebuilt) and a growing one (the leopard's rules, a domain packed at the hex
-grid's own 2 sqrt 3 per cell, division by chance 4 / cells: the list is rebuilt on the
-~98% of iterations with a division; capacity
-for 1.5 times the expected divisions); and a profile of one growing iteration at the
-leopard's size (6,240 cells, capacity 6,600): each part of `_step.step` jitted and timed
-alone (median of 20 calls; every figure includes the cost of calling a jitted function,
-timed apart). Medians over fresh processes (_harness.py).
+list is never touched) and a growing one (the leopard's rules, a domain packed at the hex
+grid's own 2 sqrt 3 per cell, division by chance 4 / cells: children are patched into the
+list and their pushed neighbours with them; capacity for 1.5 times the expected divisions),
+plotted as the cost per cell and iteration (bench_cells_scaling.svg); and a profile of one
+growing iteration at the leopard's size (6,240 cells, capacity 6,600): each part of
+`_step.step` jitted and timed alone (median of 20 calls; every figure includes the cost of
+calling a jitted function, timed apart), with `--baseline-tree DIR` the same worker also on
+an older morphojax (DIR holds its `morphojax/`; `git archive REV morphojax | tar -x -C DIR`)
+for a before / after table. Medians over fresh processes (_harness.py).
 
-    python benchmarks/bench_cells.py [--repeats 5] [--quick] [--only leopard moray scaling profile]
-                                     [--max-cells 100000] [--numpy-steps 200] [--numpy-max-cells 30000]
-                                     [--leopard-capacity N]
+    python benchmarks/bench_cells.py [--repeats 3] [--quick] [--only rows leopard moray scaling profile]
+                                     [--rows 5.14 6.6 ...] [--row-repeats 1] [--max-cells 100000]
+                                     [--numpy-steps 200] [--numpy-max-cells 30000] [--baseline-tree DIR]
 
 `--quick` runs tiny sizes (seconds; for testing) and writes nothing; otherwise the tables
-go to stdout and to benchmarks/results/bench_cells.md.
+go to stdout and to benchmarks/results/bench_cells.md (sections not run keep their text;
+the rows' measurements are kept in bench_cells_rows.json, so rows run in separate calls
+share one table).
 """
 
 from __future__ import annotations
@@ -58,11 +56,34 @@ import numpy as np
 from _harness import HERE, in_fresh_processes, machine, markdown_table, median
 
 RESULTS = HERE / "results" / "bench_cells.md"
-THESIS_SECONDS = {"leopard": 22.298, "moray": 21.122}  # Table A.1, Figs. 7.21 and 7.18
-THESIS_ITERATIONS = {"leopard": 14_000, "moray": 5_000}
+PLOT = HERE / "results" / "bench_cells_scaling.svg"
+ROWS_JSON = HERE / "results" / "bench_cells_rows.json"  # every row's processes, kept between calls
 HEX_AREA = 2 * math.sqrt(3)  # area per cell of a hexagonal grid of spacing 2
-THESIS_CELLS = {"leopard": "2,900 -> 6,228", "moray": "20,000"}
-LISTING = {"leopard": "A.18", "moray": "A.17"}
+# Table A.1: figure -> (listing, cells, iterations, seconds), cells and iterations of rows
+# 5.1 and 5.2 the right way round (the table swaps them)
+TABLE_A1 = {
+    "5.1": ("fig5.1", "225", 1_000, 0.627), "5.2": ("fig5.2", "961", 4_000, 1.586),
+    "5.14": ("A.1", "10,000", 10_000, 71.918), "5.15": ("A.2", "10,000", 18_000, 125.158),
+    "6.1": ("A.3", "10,400", 26_000, 86.066), "6.2": ("A.4", "2,500", 30_000, 25.427),
+    "6.3": ("A.5", "5,001", 10_000, 22.159), "6.4": ("A.6", "4,064", 16_000, 28.392),
+    "6.5": ("A.7", "6,432", 18_000, 29.709), "6.6": ("A.8", "2,058", 10_000, 5.502),
+    "6.7": ("A.9", "5,248", 15_000, 37.292), "6.8": ("A.10", "5,248", 15_000, 36.159),
+    "6.10": ("A.11", "5,248", 15_000, 38.599), "7.2": ("A.12", "225", 72, 0.985),
+    "7.3": ("A.13", "10,000", 3_200, 2.919), "7.7": ("A.14", "10,000", 2_000, 3.072),
+    "7.8": ("A.15", "10,000", 2_000, 3.094), "7.16": ("A.16", "10,000", 8_000, 8.135),
+    "7.18": ("A.17", "20,000", 5_000, 21.122), "7.21": ("A.18", "2,900 -> 6,228", 14_000, 22.298),
+}
+NO_LISTING = {  # Table A.1 rows that run on no shipped listing, and why
+    "5.3": "Turing test on a square grid: the thesis prints no listing",
+    "5.11": "spots: no listing printed; the lattice presets run it",
+    "5.12": "transition: no listing printed; the lattice presets run it",
+    "5.13": "anisotropy: no listing printed; the lattice presets run it",
+    "7.1": "Game of Life: an automaton (morphojax.automata), not the cell simulator",
+    "7.4": "cow: Young's automaton on a lattice (morphojax.automata)",
+    "7.13": "giraffe: needs `create sqr_grid ... wrap` (a periodic cell domain), not read yet",
+    "7.15": "nudibranch: needs `create sqr_grid ... wrap` (a periodic cell domain), not read yet",
+}
+NAMED = {"leopard": "7.21", "moray": "7.18"}
 # Listing A.18's seed cells left in a comment ("other seed cells omitted for brevity")
 LEOPARD_OMITTED_SEEDS = (1005, 1015, 1025, 1035, 1045, 1410, 1420, 1430, 1440, 1805, 1815, 1825, 1835, 1845,
                          2210, 2220, 2230, 2240, 2605, 2615, 2625, 2635, 2645)
@@ -89,10 +110,11 @@ def leopard_listing():
     return mj.load_listing(text.replace(marker, restored + "\n" + marker), name="A18_fig7.21 (32 seeds)")
 
 
-def listing_for(name: str):
+def listing_for(row: str):
+    """The listing of a Table A.1 row (the leopard's with its seeds restored)."""
     import morphojax as mj
 
-    return leopard_listing() if name == "leopard" else mj.load_listing(LISTING[name])
+    return leopard_listing() if row == "7.21" else mj.load_listing(TABLE_A1[row][0])
 
 
 def leopard_rules(growth_probability=None):
@@ -176,48 +198,36 @@ def numpy_seconds_per_iteration(state, rules, steps, dt, **settings) -> float:
     return (time.perf_counter() - t0) / steps
 
 
-def listing_worker(name: str, quick: bool, numpy_steps: int, capacity: int | None = None) -> dict:
+def listing_worker(row: str, quick: bool, reruns: int) -> dict:
+    """One Table A.1 row: the listing run for the thesis's iterations, compiled, `reruns` times."""
     import jax
 
-    import cells_numpy
-    import morphojax.cells as mc
-
-    listing = listing_for(name)
-    steps = QUICK_LISTING_STEPS if quick else listing.steps
-    seed = 0 if name == "leopard" else None  # the moray keeps its own `use seed 1`
+    listing = listing_for(row)
+    steps = QUICK_LISTING_STEPS if quick else TABLE_A1[row][2]
+    seed = 0 if row == "7.21" else None  # the others keep their own `use seed` (else 0)
 
     def run():
-        out = listing.run(seed=seed, steps=steps, capacity=capacity)  # syncs: it reads out.ok
+        out = listing.run(seed=seed, steps=steps)  # syncs: it reads out.ok
         jax.block_until_ready(out.concentration)
         return out
 
-    t0 = time.perf_counter()
-    out = run()  # compiles
-    first = time.perf_counter() - t0
-    runs = []
-    for _ in range(1 if quick else RERUNS):
-        t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
+    first_out = run()  # compiles (every capacity and room the run grows through)
+    first, first_cpu = time.perf_counter() - t0, time.process_time() - c0
+    runs, cpu = [], []
+    for _ in range(reruns):
+        t0, c0 = time.perf_counter(), time.process_time()
         out = run()
         runs.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
     jax_s = statistics.median(runs)
-
-    # the NumPy port from the same cells: the prepattern, and for a growing run snapshots
-    # spread over it (equal segments: one more compilation of morphojax's loop, untimed)
-    divides = any(isinstance(rule.action, mc.Divide) for rule in listing.rules)
-    marks = [round(k * steps / 4) for k in range(5)] if divides else [0]
-    shots = listing.snapshots(marks, seed=seed, capacity=capacity)
-    settings = dict(domain=listing.domain, division_limit=listing.division_limit)
-    per_iteration = [numpy_seconds_per_iteration(cells_numpy.from_cells(s), listing.rules, numpy_steps, listing.dt,
-                                                 **settings) for s in shots]
-    if len(per_iteration) == 1:
-        numpy_run = steps * per_iteration[0]
-    else:  # trapezoid rule over the equally spaced marks
-        numpy_run = steps * (sum(per_iteration) - (per_iteration[0] + per_iteration[-1]) / 2) / (len(per_iteration) - 1)
     return {
-        "name": name, "steps": steps, "jax": jax_s, "jax_runs": runs, "compile": first - jax_s,
-        "cells_start": int(shots[0].count), "cells_end": int(out.count), "capacity": int(out.capacity),
-        "numpy_marks": marks, "numpy_marks_cells": [int(s.count) for s in shots],
-        "numpy_per_iteration": per_iteration, "numpy_run": numpy_run, "platform": jax.devices()[0].platform,
+        "row": row, "steps": steps, "jax": jax_s, "jax_runs": runs, "cpu": statistics.median(cpu),
+        "compile": first - jax_s, "first": first, "first_cpu": first_cpu,
+        "cells_start": int(listing.prepattern(jax.random.split(jax.random.key(seed if seed is not None else
+                                                                                 (listing.seed or 0)))[0]).count),
+        "cells_end": int(out.count), "cells_end_first": int(first_out.count), "capacity": int(out.capacity),
+        "platform": jax.devices()[0].platform,
     }
 
 
@@ -276,7 +286,7 @@ def profile_worker(quick: bool) -> dict:
 
     shape, capacity = (QUICK_PROFILE_GRID, QUICK_PROFILE_CAPACITY) if quick else (PROFILE_GRID, PROFILE_CAPACITY)
     cells = leopard_cells(shape, capacity)
-    rules = leopard_rules(6 / int(cells.count))  # ~6 divisions: the list is rebuilt
+    rules = leopard_rules(6 / int(cells.count))  # ~6 divisions: the list must take them in
     search = Search(radius=INFLUENCE_RADIUS + SKIN, skin=SKIN, max_neighbours=MAX_NEIGHBOURS,
                     bucket_size=BUCKET_SIZE, table_size=table_size_for(capacity))
     settings = _step.Settings(dt=jax.numpy.asarray(0.1), domain=as_domain("packed"),
@@ -286,6 +296,7 @@ def profile_worker(quick: bool) -> dict:
     iteration = cells.step
 
     find = eqx.filter_jit(find_neighbours)
+    update = eqx.filter_jit(lambda search, *args: search.update(*args))
     contacts = eqx.filter_jit(_step.contacts)
     rules_fn = eqx.filter_jit(_step.apply_rules)
     diffusion = eqx.filter_jit(_step.diffusion_change)
@@ -297,10 +308,14 @@ def profile_worker(quick: bool) -> dict:
     touch = contacts(cells, neighbours, INFLUENCE_RADIUS)
     fx = rules_fn(rules, cells, touch, iteration, settings.dt, key)
     wants = fx.divide & cells.alive & (touch.count <= 6)
+    # the cells after one iteration with its divisions, before their neighbour list follows
+    born = divide(cells, cells, wants, fx.direction, iteration)
     parts = {
-        "neighbour rebuild (find_neighbours)": lambda: find(cells.position, cells.count, search.radius,
-                                                            search.max_neighbours, search.bucket_size,
-                                                            search.table_size),
+        "neighbour update after the divisions (Search.update)": lambda: update(search, neighbours, born.position,
+                                                                               born.count),
+        "full rebuild (find_neighbours)": lambda: find(cells.position, cells.count, search.radius,
+                                                       search.max_neighbours, search.bucket_size,
+                                                       search.table_size),
         "contacts": lambda: contacts(cells, neighbours, INFLUENCE_RADIUS),
         "rules (apply_rules)": lambda: rules_fn(rules, cells, touch, iteration, settings.dt, key),
         "diffusion (diffusion_change)": lambda: diffusion(cells, touch, settings.dt),
@@ -318,31 +333,28 @@ def profile_worker(quick: bool) -> dict:
             jax.block_until_ready(fn())
             times.append(time.perf_counter() - t0)
         out["times"][label] = statistics.median(times)
-    nxt, _, _ = whole(cells, neighbours, touch, rules, settings, key)
-    out["divisions"] = int(nxt.count) - int(cells.count)  # > 0: the profiled step rebuilt the list
+    out["divisions"] = int(born.count) - int(cells.count)  # > 0: the list had children to take in
     return out
 
 
 # ---- the report -----------------------------------------------------------------------------------
-def listing_table(results: dict) -> str:
+def rows_table(results: dict) -> str:
     rows = []
-    for name, res in results.items():
-        jax_s = [r["jax"] for r in res]
+    for row, res in results.items():
+        listing, cells, iterations, seconds = TABLE_A1[row]
+        jax_s = median([r["jax"] for r in res])
         steps = res[0]["steps"]
-        per_np = [r["numpy_run"] / r["steps"] for r in res]
-        cells_end = median([r["cells_end"] for r in res])
         rows.append([
-            f"{name} (Listing {LISTING[name]}), {steps:,} iterations",
-            f"{res[0]['cells_start']:,} -> {cells_end:,.0f} (capacity {res[0]['capacity']:,})",
-            f"{median(jax_s):.2f}", f"{median([r['compile'] for r in res]):.1f}",
-            f"{median(jax_s) / steps * 1e3:.3f}", f"{median(per_np) * 1e3:.2f}",
-            f"{median([r['numpy_run'] / r['jax'] for r in res]):.1f}x",
-            f"{THESIS_SECONDS[name]:.1f} ({THESIS_CELLS[name]} cells)",
-            f"{median([THESIS_SECONDS[name] / THESIS_ITERATIONS[name] / (r['jax'] / r['steps']) for r in res]):.2f}x",
+            f"{row} (Listing {listing})", cells, f"{iterations:,}", f"{seconds:.3f}",
+            f"{res[0]['cells_start']:,} -> {median([r['cells_end'] for r in res]):,.0f}", f"{steps:,}",
+            f"{jax_s:.2f}", f"{median([r['cpu'] for r in res]):.2f}", f"{median([r['compile'] for r in res]):.1f}",
+            f"{seconds / iterations / (jax_s / steps):.2f}x", str(len(res)),
         ])
-    return markdown_table(["run", "cells", "morphojax (s, compiled)", "compile (s)", "morphojax ms / iteration",
-                           "NumPy port ms / iteration", "speed-up over NumPy", "thesis C++ (s, i7-4500U, 1 core)",
-                           "speed-up over thesis (per iteration)"], rows)
+    for row, why in NO_LISTING.items():
+        rows.append([row, "", "", "", "", "", "", "", "", f"no cell run: {why}", ""])
+    return markdown_table(["Table A.1 row", "thesis cells", "thesis iterations", "thesis C++ (s, i7-4500U, 1 core)",
+                           "morphojax cells", "iterations", "morphojax (s, compiled)", "CPU (s, both cores)",
+                           "compile (s)", "speed-up over thesis", "processes"], rows)
 
 
 def scaling_table(res: list[dict]) -> str:
@@ -354,6 +366,11 @@ def scaling_table(res: list[dict]) -> str:
         row = [f"{first['cells']:,}", first["kind"], f"{first['capacity']:,}", f"{jax_ms:.3f}",
                f"{jax_ms * 1e3 / first['cells']:.3f}",
                f"{median([p['compile'] for p in per]):.1f}", f"{median([p['divisions'] for p in per]):.0f}"]
+        if first["kind"] == "growing":
+            static = median([r["rows"][i - 1]["jax"] for r in res])
+            row.append(f"{median([p['jax'] for p in per]) / static:.2f}x")
+        else:
+            row.append("")
         if numpy:
             row += [f"{median([p['numpy'] for p in numpy]) * 1e3:.2f}",
                     f"{median([p['numpy'] / p['jax'] for p in numpy]):.1f}x"]
@@ -361,46 +378,126 @@ def scaling_table(res: list[dict]) -> str:
             row += ["(skipped)", ""]
         rows.append(row)
     return markdown_table(["cells (hex grid)", "run", "capacity", "morphojax ms / iteration", "us / cell / iteration",
-                           "compile (s)", f"divisions in {res[0]['steps']} iterations", "NumPy port ms / iteration",
-                           "speed-up over NumPy"], rows)
+                           "compile (s)", f"divisions in {res[0]['steps']} iterations", "growing / static",
+                           "NumPy port ms / iteration", "speed-up over NumPy"], rows)
 
 
-def profile_table(res: list[dict]) -> str:
+def scaling_plot(res: list[dict]) -> str:
+    """An SVG of us per cell and iteration against cells (log-log), static and growing."""
+    series = {}
+    for i, first in enumerate(res[0]["rows"]):
+        us = median([r["rows"][i]["jax"] for r in res]) * 1e6 / first["cells"]
+        series.setdefault(first["kind"], []).append((first["cells"], us))
+    width, height, pad = 560, 360, 60
+    xs = [x for pts in series.values() for x, _ in pts]
+    ys = [y for pts in series.values() for _, y in pts]
+    lx0, lx1 = math.log10(min(xs)) - 0.1, math.log10(max(xs)) + 0.1
+    ly0, ly1 = math.log10(min(ys)) - 0.15, math.log10(max(ys)) + 0.15
+
+    def at(x, y):
+        return (pad + (math.log10(x) - lx0) / (lx1 - lx0) * (width - 1.5 * pad),
+                height - pad - (math.log10(y) - ly0) / (ly1 - ly0) * (height - 1.5 * pad))
+
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif" '
+             f'font-size="12"><rect width="100%" height="100%" fill="white"/>',
+             f'<line x1="{pad}" y1="{height - pad}" x2="{width - pad / 2}" y2="{height - pad}" stroke="black"/>',
+             f'<line x1="{pad}" y1="{pad / 2}" x2="{pad}" y2="{height - pad}" stroke="black"/>',
+             f'<text x="{width / 2}" y="{height - 15}" text-anchor="middle">cells (log)</text>',
+             f'<text x="15" y="{height / 2}" transform="rotate(-90 15 {height / 2})" text-anchor="middle">'
+             'us per cell and iteration (log)</text>']
+    for x in sorted(set(xs)):
+        px, _ = at(x, 10 ** ly0)
+        parts.append(f'<text x="{px:.1f}" y="{height - pad + 16}" text-anchor="middle">{x:,}</text>')
+    for e in range(math.floor(ly0 * 4), math.ceil(ly1 * 4) + 1):
+        y = 10 ** (e / 4)
+        if ly0 <= math.log10(y) <= ly1:
+            _, py = at(10 ** lx0, y)
+            parts.append(f'<text x="{pad - 5}" y="{py + 4:.1f}" text-anchor="end">{y:.3g}</text>')
+            parts.append(f'<line x1="{pad}" y1="{py:.1f}" x2="{width - pad / 2}" y2="{py:.1f}" stroke="#ddd"/>')
+    for (kind, pts), colour in zip(sorted(series.items()), ("#c0392b", "#2c3e50")):
+        path = " ".join(f"{a:.1f},{b:.1f}" for a, b in (at(x, y) for x, y in pts))
+        parts.append(f'<polyline points="{path}" fill="none" stroke="{colour}" stroke-width="2"/>')
+        for x, y in pts:
+            px, py = at(x, y)
+            parts.append(f'<circle cx="{px:.1f}" cy="{py:.1f}" r="3" fill="{colour}"/>')
+        px, py = at(*pts[-1])
+        parts.append(f'<text x="{px - 5:.1f}" y="{py - 8:.1f}" text-anchor="end" fill="{colour}">{kind}</text>')
+    return "\n".join(parts + ["</svg>"]) + "\n"
+
+
+def profile_table(res: list[dict], before: list[dict] | None = None) -> str:
     labels = list(res[0]["times"])
-    whole = median([r["times"]["whole step (_step.step)"] for r in res])
+    if before:
+        labels += [label for label in before[0]["times"] if label not in labels]
+
+    def figure(results, label):
+        got = [r["times"][label] for r in results if label in r["times"]]
+        return median(got) if got else None
+
     rows = []
     for label in labels:
-        t = median([r["times"][label] for r in res])
-        rows.append([label, f"{t * 1e3:.3f}", f"{100 * t / whole:.0f}%"])
-    six = [label for label in labels if not label.startswith(("whole", "("))]
-    parts = sum(median([r["times"][label] for r in res]) for label in six)
-    rows.append(["sum of the six parts (each paying the dispatch)", f"{parts * 1e3:.3f}",
-                 f"{100 * parts / whole:.0f}%"])
-    return markdown_table(["part of one growing iteration", "ms (median of 20 calls)", "of the whole step"], rows)
+        row = [label]
+        for results in ([before] if before else []) + [res]:
+            t = figure(results, label)
+            whole = figure(results, "whole step (_step.step)")
+            row += ["" if t is None else f"{t * 1e3:.3f}", "" if t is None else f"{100 * t / whole:.0f}%"]
+        rows.append(row)
+    headers = ["part of one growing iteration"]
+    if before:
+        headers += ["before: ms (median of 20 calls)", "before: of the whole step"]
+    headers += ["ms (median of 20 calls)", "of the whole step"]
+    return markdown_table(headers, rows)
+
+
+def in_processes_with(tree, script, args, repeats) -> list[dict]:
+    """`in_fresh_processes`, importing morphojax from `tree` (an older copy) when given."""
+    if tree is None:
+        return in_fresh_processes(script, args, repeats)
+    import subprocess
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree), str(HERE.parent / "tests"), str(HERE)]))
+    out = []
+    for _ in range(repeats):
+        res = subprocess.run([sys.executable, str(script), "--worker", *args], capture_output=True, text=True,
+                             env=env, check=False)
+        if res.returncode != 0:
+            raise RuntimeError(f"benchmark worker failed:\n{res.stderr[-3000:]}")
+        out.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    return out
+
+
+def _replace_section(text: str, title: str, body: str) -> str:
+    """`text` (a results file) with the section `## title...` replaced by `body` (appended if absent)."""
+    lines = text.split("\n## ")
+    for i, chunk in enumerate(lines):
+        if chunk.startswith(title):
+            lines[i] = body[3:] if body.startswith("## ") else body
+            return "\n## ".join(lines)
+    return text.rstrip("\n") + "\n\n" + body
 
 
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
-    p.add_argument("task", nargs="*", help=argparse.SUPPRESS)  # a worker's task: listing NAME, scaling N..., profile
-    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("task", nargs="*", help=argparse.SUPPRESS)  # a worker's task: row FIG, scaling N..., profile
+    p.add_argument("--repeats", type=int, default=3, help="processes for the leopard, the moray, scaling, profile")
+    p.add_argument("--row-repeats", type=int, default=1, help="processes for the other rows of Table A.1")
+    p.add_argument("--reruns", type=int, default=RERUNS, help="compiled re-runs per process (leopard, moray)")
     p.add_argument("--quick", action="store_true", help="tiny sizes, one process each; writes no results file")
-    p.add_argument("--only", nargs="+", choices=("leopard", "moray", "scaling", "profile"),
-                   default=["leopard", "moray", "scaling", "profile"])
+    p.add_argument("--only", nargs="+", choices=("rows", "leopard", "moray", "scaling", "profile"),
+                   default=["rows", "scaling", "profile"])
+    p.add_argument("--rows", nargs="+", default=None, help="Table A.1 rows to run (default: every one with a listing)")
     p.add_argument("--max-cells", type=int, default=100_000, help="largest grid of the scaling runs")
     p.add_argument("--numpy-steps", type=int, default=200, help="iterations per timing of the NumPy port")
     p.add_argument("--numpy-max-cells", type=int, default=30_000, help="no NumPy baseline above this many cells")
-    p.add_argument("--leopard-capacity", type=int, default=None,
-                   help="a fixed cell capacity for the leopard's run (default: Listing.run's, which grows "
-                        "with the tissue; every iteration costs in proportion to it)")
+    p.add_argument("--baseline-tree", default=None, help="a folder holding an older morphojax/ to profile too")
     args = p.parse_args()
     numpy_steps = 5 if args.quick else args.numpy_steps
     quick = ["--quick"] if args.quick else []
     if args.worker:
         task, *rest = args.task
-        if task == "listing":
-            capacity = args.leopard_capacity if rest[0] == "leopard" else None
-            out = listing_worker(rest[0], args.quick, numpy_steps, capacity)
+        if task == "row":
+            out = listing_worker(rest[0], args.quick, 1 if args.quick else int(rest[1]))
         elif task == "scaling":
             out = scaling_worker([int(n) for n in rest], args.quick, numpy_steps, args.numpy_max_cells)
         else:
@@ -409,42 +506,63 @@ def main():
         return
 
     started = time.perf_counter()
-    repeats = 1 if args.quick else args.repeats
     script = HERE / "bench_cells.py"
     common = [*quick, "--numpy-steps", str(numpy_steps), "--numpy-max-cells", str(args.numpy_max_cells)]
-    if args.leopard_capacity is not None:
-        common += ["--leopard-capacity", str(args.leopard_capacity)]
     load_before = os.getloadavg()
     check = check_port()
     print(f"NumPy port check: {check}", file=sys.stderr)
     sections = []
-    listings = {}
-    for name in ("leopard", "moray"):
-        if name in args.only:
-            listings[name] = in_fresh_processes(script, [*common, "listing", name], repeats)
-            print(f"{name}: {listings[name]}", file=sys.stderr)
-    if listings:
-        sections.append("## The thesis's timed listings (Table A.1)\n\n" + listing_table(listings))
+    wanted = list(args.rows or (TABLE_A1 if "rows" in args.only else []))
+    wanted += [NAMED[n] for n in ("leopard", "moray") if n in args.only and NAMED[n] not in wanted]
+    rows = {}
+    for row in wanted:
+        if row not in TABLE_A1:
+            raise SystemExit(f"--rows: {row!r} is not a Table A.1 row with a listing ({', '.join(TABLE_A1)})")
+        named = row in NAMED.values()
+        repeats = 1 if args.quick else (args.repeats if named else args.row_repeats)
+        reruns = args.reruns if named else 1
+        rows[row] = in_fresh_processes(script, [*common, "row", row, str(reruns)], repeats)
+        print(f"{row}: {rows[row]}", file=sys.stderr)
+    if rows and not args.quick:  # rows measured before (other rows, other calls) stay in the table
+        kept = json.loads(ROWS_JSON.read_text()) if ROWS_JSON.exists() else {}
+        kept.update(rows)
+        ROWS_JSON.write_text(json.dumps(kept, indent=1) + "\n")
+        rows = {row: kept[row] for row in TABLE_A1 if row in kept}
+    if rows:
+        sections.append(("The thesis's timed listings (Table A.1)",
+                         "## The thesis's timed listings (Table A.1)\n\n" + rows_table(rows)))
     if "scaling" in args.only:
         sizes = [n for n in (QUICK_SCALING_CELLS if args.quick else SCALING_CELLS) if n <= args.max_cells]
-        res = in_fresh_processes(script, [*common, "scaling", *map(str, sizes)], repeats)
+        res = in_fresh_processes(script, [*common, "scaling", *map(str, sizes)], 1 if args.quick else args.repeats)
         print(f"scaling: {res}", file=sys.stderr)
-        sections.append("## Time per iteration against the number of cells\n\n" + scaling_table(res))
+        if not args.quick:
+            PLOT.write_text(scaling_plot(res))
+        sections.append(("Time per iteration against the number of cells",
+                         "## Time per iteration against the number of cells\n\n"
+                         f"![cost per cell and iteration]({PLOT.name})\n\n" + scaling_table(res)))
     if "profile" in args.only:
+        repeats = 1 if args.quick else args.repeats
         res = in_fresh_processes(script, [*common, "profile"], repeats)
-        print(f"profile: {res}", file=sys.stderr)
-        sections.append(f"## One growing iteration, {res[0]['cells']:,} cells in a capacity of "
-                        f"{res[0]['capacity']:,} ({median([r['divisions'] for r in res]):.0f} divisions)\n\n"
-                        + profile_table(res))
+        before = (in_processes_with(args.baseline_tree, script, [*common, "profile"], repeats)
+                  if args.baseline_tree else None)
+        print(f"profile: {res} before: {before}", file=sys.stderr)
+        title = "One growing iteration"
+        sections.append((title, f"## {title}, {res[0]['cells']:,} cells in a capacity of {res[0]['capacity']:,} "
+                         f"({median([r['divisions'] for r in res]):.0f} divisions)\n\n"
+                         + (f"before: morphojax from {args.baseline_tree}\n\n" if before else "")
+                         + profile_table(res, before)))
     load_after = os.getloadavg()
-    footer = (f"machine: {machine()}; load average before {load_before[0]:.1f}, after {load_after[0]:.1f}; "
-              f"medians of {repeats} fresh processes; NumPy port check: {check}; "
+    footer = (f"machine: {machine()}; load average before {load_before[0]:.1f}, after {load_after[0]:.1f} "
+              f"(the 2 cores are shared: CPU seconds are steadier than wall seconds); NumPy port check: {check}; "
               f"benchmark wall time {time.perf_counter() - started:.0f} s")
-    report = "\n\n".join(sections + [footer])
+    command = "python benchmarks/bench_cells.py " + " ".join(sys.argv[1:])
+    report = "\n\n".join([body for _, body in sections] + [f"`{command.strip()}`: {footer}"])
     print(report)
     if not args.quick:
-        command = "python benchmarks/bench_cells.py " + " ".join(sys.argv[1:])
-        RESULTS.write_text(f"# The off-lattice cell simulator: speed\n\n`{command.strip()}`\n\n{report}\n")
+        text = RESULTS.read_text() if RESULTS.exists() else "# The off-lattice cell simulator: speed\n"
+        for title, body in sections:
+            text = _replace_section(text, title, body + f"\n\n`{command.strip()}`: {footer}\n")
+        RESULTS.write_text(text)
 
 
 if __name__ == "__main__":
