@@ -49,7 +49,7 @@ _T = mj.Turing(4.0, 1.0)
         (lambda: mj.Phase(_T, steps=2.5, dt=0.01), r"Phase\.steps must be an integer"),
         (lambda: mj.Phase(_T, steps=10, dt=0.0), r"Phase\.dt must lie in \(0, \+inf\)"),
         (lambda: mj.Phase("turing", steps=10, dt=0.01), r"Phase\.model must be a morphojax model"),
-        (lambda: mj.Phase(_T, steps=10, dt=0.01, growth=2.0), r"Phase\.growth must be None or a Growth"),
+        (lambda: mj.Phase(_T, steps=10, dt=0.01, growth=2.0), r"Phase\.growth must be None, a Growth"),
         (lambda: mj.Phase(_T, steps=10, dt=0.01, sources=("b",)), r"Phase\.sources must be Source"),
         (lambda: mj.Growth(1.0, "normal", spread=np.inf), r"Growth\.spread .* must lie in \(0, \+inf\)"),
         (lambda: mj.Growth(1.0, "normal", spread="x"), r"Growth\.spread must be a number"),
