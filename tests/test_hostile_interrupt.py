@@ -18,6 +18,14 @@ import pytest
 import morphojax as mj
 
 TRIES = 10
+# `python -m morphojax.cli` as a shell starts it: Ctrl-C delivered and handled by Python. A
+# test worker's process may hand its children SIGINT ignored or blocked (both survive exec;
+# then every try ran to its end and exited 0 in CI), so the child restores both first.
+AS_FROM_A_SHELL = ("import runpy, signal, sys\n"
+                   "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+                   "signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])\n"
+                   "sys.argv[0] = 'morphojax'\n"
+                   "runpy.run_module('morphojax.cli', run_name='__main__', alter_sys=True)\n")
 
 
 @pytest.mark.slow
@@ -35,7 +43,7 @@ def test_ctrl_c_exits_130_every_time(tmp_path):
         shutil.copy(start, checkpoint)
         # the compilation cache off: every try compiles, as a first run does (with the
         # programs cached the whole run ends before the first interrupt)
-        proc = subprocess.Popen([sys.executable, "-m", "morphojax.cli", "resume", str(checkpoint),
+        proc = subprocess.Popen([sys.executable, "-c", AS_FROM_A_SHELL, "resume", str(checkpoint),
                                  "--checkpoint-every", "20000", "--no-progress", "--quiet"],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                 env={**os.environ, "MORPHOJAX_CACHE_DIR": "off"})
