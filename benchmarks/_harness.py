@@ -43,10 +43,12 @@ def time_interleaved(fns: dict, rounds: int = 4) -> dict:
     return best
 
 
-def in_fresh_processes(script: Path, args: list[str], repeats: int) -> list[dict]:
-    """Run `script --worker ARGS` `repeats` times, each in a new Python process; collect JSON."""
+def in_fresh_processes(script: Path, args: list[str], repeats: int, tree: Path | None = None) -> list[dict]:
+    """Run `script --worker ARGS` `repeats` times, each in a new Python process; collect JSON.
+    `tree`: import morphojax from that copy of the repository (default this one)."""
     out = []
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), str(HERE)]))
+    source = ROOT if tree is None else tree
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(source), str(ROOT / "tests"), str(HERE)]))
     for _ in range(repeats):
         res = subprocess.run([sys.executable, str(script), "--worker", *args], capture_output=True, text=True,
                              env=env, check=False)

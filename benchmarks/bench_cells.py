@@ -451,19 +451,7 @@ def profile_table(res: list[dict], before: list[dict] | None = None) -> str:
 
 def in_processes_with(tree, script, args, repeats) -> list[dict]:
     """`in_fresh_processes`, importing morphojax from `tree` (an older copy) when given."""
-    if tree is None:
-        return in_fresh_processes(script, args, repeats)
-    import subprocess
-
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree), str(HERE.parent / "tests"), str(HERE)]))
-    out = []
-    for _ in range(repeats):
-        res = subprocess.run([sys.executable, str(script), "--worker", *args], capture_output=True, text=True,
-                             env=env, check=False)
-        if res.returncode != 0:
-            raise RuntimeError(f"benchmark worker failed:\n{res.stderr[-3000:]}")
-        out.append(json.loads(res.stdout.strip().splitlines()[-1]))
-    return out
+    return in_fresh_processes(script, args, repeats, tree)
 
 
 def _replace_section(text: str, title: str, body: str) -> str:
