@@ -4,6 +4,7 @@ finite differences."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import jax
@@ -158,19 +159,85 @@ def test_iterations_match_the_numpy_oracle(mixed):
     assert int(cells.step) == 4
 
 
-def test_one_call_equals_resumed_calls(mixed):
-    """A resumed call builds its neighbour list afresh, while one call patches the list it
-    carries: the same pairs in other slots, so the same cells up to the order of float sums."""
+def _identical(a, b):
+    """The same cells bit for bit: counts, positions, every species, every buffer, status."""
+    assert int(a.count) == int(b.count) and int(a.step) == int(b.step)
+    n = int(a.count) if a.capacity != b.capacity else a.capacity  # buffers of other sizes: the live cells
+    np.testing.assert_array_equal(np.asarray(a.position)[:n], np.asarray(b.position)[:n], "position")
+    for name in a.species:
+        np.testing.assert_array_equal(np.asarray(a[name])[:n], np.asarray(b[name])[:n], name)
+    for name in ("polarity", "polarised", "birth", "fixed"):
+        np.testing.assert_array_equal(np.asarray(getattr(a, name))[:n], np.asarray(getattr(b, name))[:n], name)
+    np.testing.assert_array_equal(np.asarray(a.diffusion)[:, :n], np.asarray(b.diffusion)[:, :n], "diffusion")
+    for name in ("overflow_step", "neighbour_overflow_step", "nonfinite_step"):
+        assert int(getattr(a, name)) == int(getattr(b, name)), name
+
+
+def test_one_call_equals_resumed_calls(mixed, tmp_path):
+    """The cells carry the neighbour list their run patched, and a resumed call goes on
+    from it (from the cells, or from their file), so resumed calls give the cells of one
+    call bit for bit, not merely up to the order of float sums."""
     cells, rules = mixed
-    whole = mc.simulate_cells(None, cells, 4, 0.5, rules=rules, domain=(24.0, 24.0), division_limit=5)
+    settings = dict(rules=rules, domain=(24.0, 24.0), division_limit=5)
+    whole = mc.simulate_cells(None, cells, 4, 0.5, **settings)
     parts = cells
     for _ in range(2):
-        parts = mc.simulate_cells(None, parts, 2, 0.5, rules=rules, domain=(24.0, 24.0), division_limit=5)
-    for name in ("count", "step", "birth", "polarised", "fixed"):
-        np.testing.assert_array_equal(np.asarray(getattr(whole, name)), np.asarray(getattr(parts, name)), name)
-    for name in ("position", "polarity", "concentration", "diffusion"):
-        np.testing.assert_allclose(np.asarray(getattr(whole, name)), np.asarray(getattr(parts, name)),
-                                   rtol=1e-5, atol=1e-5, err_msg=name)
+        parts = mc.simulate_cells(None, parts, 2, 0.5, **settings)
+    assert int(whole.count) > int(cells.count), "the case should divide, so the list is patched"
+    _identical(whole, parts)
+    # through a file: the list is saved with the cells and read back
+    half = mc.simulate_cells(None, cells, 2, 0.5, **settings)
+    back, _ = mj.load_cells(mj.save_cells(tmp_path / "half.npz", half))
+    for x, y in zip(jax.tree_util.tree_leaves(half), jax.tree_util.tree_leaves(back)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    _identical(whole, mc.simulate_cells(None, back, 2, 0.5, **settings))
+    # in larger buffers the list goes on too
+    _identical(whole, mc.simulate_cells(None, half.with_capacity(60), 2, 0.5, **settings))
+
+
+def test_a_growing_run_resumed_many_times_equals_one_call():
+    """A packed tissue growing by chance (divisions and the pushes they cause patch the
+    list every few iterations): ten calls of 30 iterations give the cells of one call of
+    300, bit for bit."""
+    cells = mc.cell_grid((12, 12), ("U", "V"), lattice="hex", concentration=(4.0, 4.0), spread=(0.0, 1.0),
+                         diffusion=(0.4, 0.01), upper=(4.05, None), capacity=400, key=jax.random.key(0))
+    rules = (mc.Rule(mc.React(mj.Bard(alpha=16.0, beta=12.0, sp=1.0), ("U", "V"), scale=0.1)),
+             mc.Rule(mc.Divide(0.0, math.pi), when=mc.Chance(2e-3)))
+    settings = dict(rules=rules, key=jax.random.key(1), domain="packed", division_limit=6)
+    whole = mc.simulate_cells(None, cells, 300, 0.1, **settings)
+    parts = cells
+    for _ in range(10):
+        parts = mc.simulate_cells(None, parts, 30, 0.1, **settings)
+    assert int(whole.count) > int(cells.count) + 20
+    _identical(whole, parts)
+
+
+def test_cells_files_without_a_neighbour_list_still_load_and_resume(mixed, tmp_path):
+    """A file written before the list was saved (no list entries) loads, and a run resumed
+    from it builds its list afresh; a file with half a list is refused, naming it."""
+    cells, rules = mixed
+    half = mc.simulate_cells(None, cells, 2, 0.5, rules=rules, domain=(24.0, 24.0), division_limit=5)
+    path = mj.save_cells(tmp_path / "half.npz", half)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays["metadata"]))
+    assert meta["neighbour_list"]["built_count"] == int(half.count)
+    old = {k: v for k, v in arrays.items() if not k.startswith("neighbour_")}
+    meta.pop("neighbour_list")
+    np.savez_compressed(tmp_path / "old.npz", **{**old, "metadata": np.asarray(json.dumps(meta))})
+    back, _ = mj.load_cells(tmp_path / "old.npz")
+    assert back.neighbours is None
+    np.testing.assert_array_equal(np.asarray(back.position), np.asarray(half.position))
+    more = mc.simulate_cells(None, back, 2, 0.5, rules=rules, domain=(24.0, 24.0), division_limit=5)
+    assert more.neighbours is not None and int(more.step) == 4
+    np.savez_compressed(tmp_path / "bad.npz", **{**old, "neighbour_index": arrays["neighbour_index"]})
+    with pytest.raises(ValueError, match=r"bad\.npz .*neighbour list needs"):
+        mj.load_cells(tmp_path / "bad.npz")
+    wrong = arrays["neighbour_index"].copy()
+    wrong[0, 0] = int(half.count)
+    np.savez_compressed(tmp_path / "bad.npz", **{**arrays, "neighbour_index": wrong})
+    with pytest.raises(ValueError, match=r"bad\.npz .*not live"):
+        mj.load_cells(tmp_path / "bad.npz")
 
 
 # ---- invariants -----------------------------------------------------------------------------

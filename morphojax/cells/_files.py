@@ -1,6 +1,14 @@
 """Cells to and from `.npz` files: every buffer of the live cells, the reagents' names,
 limits and anisotropy, the iteration count and the run's status, with JSON metadata
-(what produced them: a listing's text, the seed, the steps), written atomically."""
+(what produced them: a listing's text, the seed, the steps), written atomically.
+
+The neighbour list the cells carry is part of the run's state and is saved too (its live
+rows, `neighbour_index` with -1 for an empty slot and `neighbour_reference`, and the
+metadata entry `neighbour_list`), so a run resumed from the file goes on bit for bit as
+the uninterrupted one. The format stays "morphojax-cells/1": files without a list (those
+written before it was saved, or of cells no run produced) load as before, and a resumed
+run builds its list afresh.
+"""
 
 from __future__ import annotations
 
@@ -11,9 +19,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._files import read_npz, write_npz
+from ._neighbours import NeighbourList
 from ._state import STATUS_FIELDS, Cells, make_cells
 
 FORMAT = "morphojax-cells/1"
+LIST_ARRAYS = ("neighbour_index", "neighbour_reference")  # the saved neighbour list's live rows
+LIST_META = "neighbour_list"  # its metadata: the search that keeps it and its counters
 
 
 def save_cells(path, cells: Cells, metadata: dict | None = None) -> Path:
@@ -31,11 +42,32 @@ def save_cells(path, cells: Cells, metadata: dict | None = None) -> Path:
         **(metadata or {}),
     }
     live = cells.live()
+    listed = _list_entries(cells)
+    if listed:
+        meta[LIST_META] = listed.pop(LIST_META)
     return write_npz(
         path, **live, lower=np.asarray(cells.lower), upper=np.asarray(cells.upper),
         status=np.asarray([int(getattr(cells, name)) for name in STATUS_FIELDS]),
-        metadata=json.dumps(meta),
+        metadata=json.dumps(meta), **listed,
     )
+
+
+def _list_entries(cells: Cells) -> dict:
+    """The entries that save the neighbour list the cells carry (its metadata under
+    LIST_META, its arrays): its live rows only, since a run leaves the rows past the live
+    cells empty and their references zero (as the positions there). Nothing for cells
+    without a list, or with one that covers cells no longer live (cells changed by hand:
+    a resumed run builds its list afresh, as it would from them)."""
+    nb, n = cells.neighbours, int(cells.count)
+    if nb is None:
+        return {}
+    index, reference = np.asarray(nb.index), np.asarray(nb.reference)
+    if int(nb.built_count) > n or (index[n:] != cells.capacity).any() or (reference[n:] != 0).any():
+        return {}
+    meta = {"radius": nb.radius, "skin": nb.skin, "bucket_size": nb.bucket_size,
+            "built_count": int(nb.built_count), "builds": int(nb.builds), "overflow": bool(nb.overflow)}
+    rows = np.where(index[:n] >= cells.capacity, -1, index[:n]).astype(np.int32)
+    return {LIST_META: meta, "neighbour_index": rows, "neighbour_reference": reference[:n]}
 
 
 def load_cells(path) -> tuple[Cells, dict]:
@@ -66,6 +98,7 @@ def _cells_from(meta, arrays):
                          f"{len(meta['species'])} species")
     if meta["step"] < 0:
         raise ValueError(f"metadata field 'step' must be >= 0 (got {meta['step']})")
+    listed = {name: arrays.pop(name) for name in LIST_ARRAYS if name in arrays}
     position = arrays.pop("position")
     if position.ndim != 2 or not np.issubdtype(position.dtype, np.floating):
         raise ValueError(f"its positions must be an (n, 2) float array (got {position.ndim}D {position.dtype})")
@@ -91,4 +124,41 @@ def _cells_from(meta, arrays):
         meta["species"], position, **arrays, lower=lower, upper=upper,
         anisotropic=tuple(bool(a) for a in meta["anisotropic"]), capacity=int(meta["capacity"]), step=int(meta["step"]),
     )
-    return cells.replace(**{name: jnp.asarray(int(v), jnp.int32) for name, v in zip(STATUS_FIELDS, status)}), meta
+    cells = cells.replace(**{name: jnp.asarray(int(v), jnp.int32) for name, v in zip(STATUS_FIELDS, status)})
+    if listed or LIST_META in meta:
+        cells = cells.with_neighbours(_list_from(meta.get(LIST_META), listed, cells))
+    return cells, meta
+
+
+def _list_from(meta, arrays, cells: Cells) -> NeighbourList:
+    """The saved neighbour list, checked against the cells, in their buffers."""
+    if not isinstance(meta, dict) or set(arrays) != set(LIST_ARRAYS):
+        raise ValueError(f"a neighbour list needs the metadata entry {LIST_META!r} and the arrays "
+                         f"{' and '.join(map(repr, LIST_ARRAYS))} together")
+    for field, kinds in (("radius", (int, float)), ("skin", (int, float)), ("bucket_size", int),
+                         ("built_count", int), ("builds", int), ("overflow", bool)):
+        value = meta.get(field)
+        if not isinstance(value, kinds) or (field != "overflow" and isinstance(value, bool)):
+            raise ValueError(f"metadata field {LIST_META}.{field} is {value!r}")
+    n, capacity = int(cells.count), cells.capacity
+    if not (meta["radius"] > 0 and meta["skin"] >= 0 and meta["bucket_size"] >= 1 and 0 <= meta["built_count"] <= n
+            and meta["builds"] >= 0):
+        raise ValueError(f"metadata field {LIST_META} holds values out of range ({meta})")
+    index, reference = arrays["neighbour_index"], arrays["neighbour_reference"]
+    if index.ndim != 2 or index.shape[0] != n or index.shape[1] < 1 or index.dtype.kind not in "iu":
+        raise ValueError(f"its array 'neighbour_index' must hold integers, one row per cell (got {index.shape} "
+                         f"{index.dtype} for {n} cells)")
+    if ((index < -1) | (index >= n)).any():
+        raise ValueError("its array 'neighbour_index' names cells that are not live")
+    if reference.shape != (n, 2) or reference.dtype.kind != "f" or not np.isfinite(reference).all():
+        raise ValueError(f"its array 'neighbour_reference' must hold finite (x, y) per cell (got {reference.shape} "
+                         f"{reference.dtype})")
+    rows = np.full((capacity, index.shape[1]), capacity, np.int32)
+    rows[:n] = np.where(index < 0, capacity, index)
+    where = np.zeros((capacity, 2), reference.dtype)
+    where[:n] = reference
+    return NeighbourList(
+        index=jnp.asarray(rows), reference=jnp.asarray(where, cells.position.dtype),
+        built_count=jnp.asarray(meta["built_count"], jnp.int32), overflow=jnp.asarray(meta["overflow"]),
+        builds=jnp.asarray(meta["builds"], jnp.int32), radius=float(meta["radius"]), skin=float(meta["skin"]),
+        bucket_size=int(meta["bucket_size"]))

@@ -31,6 +31,14 @@ Running out of room (three buckets in a row holding more than 3 x `bucket_size` 
 a cell with more than `max_neighbours` partners) sets `overflow`: the simulator records the
 iteration, so a missed neighbour is never silent; growing the room is done outside jit
 (`Listing.run`, `needed_room`).
+
+A patched list holds the same pairs as a rebuilt one within the influence radius but in
+other slots, and more pairs beyond it (its references are older), so the contacts' float
+sums run in another order. The list is therefore part of the run's state: the cells carry
+it from call to call (`Cells.neighbours`, saved in their files), and a resumed call
+continues it, so that it is bit-identical to one uninterrupted call (issue 37). A call
+builds a list afresh only when the cells carry none, or one for another radius, skin,
+capacity or `max_neighbours` (`Search.fits`).
 """
 
 from __future__ import annotations
@@ -56,6 +64,8 @@ class NeighbourList(eqx.Module):
             row yet).
         overflow: bool, a build or patch ran out of room (sticky until the next full build).
         builds: int32, full builds since the first one (patches are not counted).
+        radius, skin, bucket_size: (static) the search that keeps it (`Search`'s); a call
+            with another radius or skin builds its own list.
     """
 
     index: Array
@@ -63,6 +73,30 @@ class NeighbourList(eqx.Module):
     built_count: Array
     overflow: Array
     builds: Array
+    radius: float = eqx.field(static=True)
+    skin: float = eqx.field(static=True)
+    bucket_size: int = eqx.field(static=True)
+
+    @property
+    def max_neighbours(self) -> int:
+        return self.index.shape[-1]
+
+    def resized(self, capacity: int) -> "NeighbourList":
+        """The same list for buffers of `capacity` entries (at least the cells it covers):
+        the empty slots' marker is the capacity, and the rows past the live cells are empty."""
+        old, slots = self.index.shape[-2:]
+        index = jnp.where(self.index >= old, capacity, self.index)[:capacity]
+        reference = self.reference[:capacity]
+        grow = capacity - index.shape[0]
+        index = jnp.concatenate([index, jnp.full((grow, slots), capacity, index.dtype)])
+        reference = jnp.concatenate([reference, jnp.zeros((grow, 2), reference.dtype)])
+        return self.retagged(index=index, reference=reference)
+
+    def retagged(self, **changes) -> "NeighbourList":
+        """A copy with some fields replaced (static ones too)."""
+        fields = {name: getattr(self, name) for name in ("index", "reference", "built_count", "overflow",
+                                                           "builds", "radius", "skin", "bucket_size")}
+        return NeighbourList(**{**fields, **changes})
 
 
 class Search(eqx.Module):
@@ -83,7 +117,22 @@ class Search(eqx.Module):
         index, overflow = find_neighbours(position, count, self.radius, self.max_neighbours,
                                           self.bucket_size, self.table_size)
         return NeighbourList(index, position, jnp.asarray(count, jnp.int32), overflow,
-                             jnp.asarray(builds, jnp.int32))
+                             jnp.asarray(builds, jnp.int32), self.radius, self.skin, self.bucket_size)
+
+    def fits(self, neighbours: NeighbourList | None, capacity: int) -> bool:
+        """Whether a carried list can go on under this search (static): the same radius,
+        skin, capacity and slots per cell. (`bucket_size` and `table_size` only size a full
+        build's reads: they change no list that did not overflow.)"""
+        return (neighbours is not None and neighbours.radius == self.radius and neighbours.skin == self.skin
+                and neighbours.index.shape == (capacity, self.max_neighbours))
+
+    def carry_on(self, neighbours: NeighbourList, position: Array, count: Array) -> NeighbourList:
+        """A carried list (`fits`) as this search's, unchanged (so a resumed run goes on
+        exactly as one that never stopped); built afresh only when it covers more cells
+        than are live (cells were taken away: no simulation does that)."""
+        carried = neighbours.retagged(bucket_size=self.bucket_size)
+        return jax.lax.cond(carried.built_count <= count, lambda: carried,
+                            lambda: self.build(position, count, carried.builds + 1))
 
     def movers(self, neighbours: NeighbourList, position: Array, count: Array) -> Array:
         """(capacity,) bool: the live cells that broke the list's rule, born since it was
@@ -160,8 +209,8 @@ def patch(neighbours: NeighbourList, movers: Array, position: Array, count: Arra
     index = index.at[jnp.where(placed, target, capacity), slot].set(mover.astype(jnp.int32), mode="drop")
 
     index = index.at[who].set(new, mode="drop")
-    return NeighbourList(index, reference, jnp.asarray(count, jnp.int32), neighbours.overflow | overflow,
-                         neighbours.builds)
+    return neighbours.retagged(index=index, reference=reference, built_count=jnp.asarray(count, jnp.int32),
+                               overflow=neighbours.overflow | overflow)
 
 
 def first_true(flags: Array, size: int) -> Array:

@@ -41,8 +41,8 @@ def simulate_cells(
     domain=None,
     division_limit: int | None = None,
     influence_radius: float = INFLUENCE_RADIUS,
-    max_neighbours: int = MAX_NEIGHBOURS,
-    bucket_size: int = BUCKET_SIZE,
+    max_neighbours: int | None = None,
+    bucket_size: int | None = None,
     throw: bool = True,
     progress: bool | str = False,
     check_dt: bool = True,
@@ -67,7 +67,8 @@ def simulate_cells(
         max_neighbours, bucket_size: room in the neighbour search: partners per cell, and
             cells per bucket on average over three in a row (a full build reads 3 x
             bucket_size candidates from each of a cell's three rows of buckets;
-            `needed_room` says what cells need).
+            `needed_room` says what cells need). Default: the room of the neighbour list
+            the cells carry (for the same influence radius), else 20 and 8.
         throw: raise `SimulationError` (naming the iteration) when the run blew up, a
             division found no room or the neighbour search overflowed. Inside `jit` or
             `vmap` nothing is raised: read `cells.ok` / `cells.message()`.
@@ -79,8 +80,13 @@ def simulate_cells(
             the first piece that blew up.
 
     Returns the cells after the run; `cells.step` counts iterations across calls, so a
-    run can be resumed by calling again with the result (the same cells up to the order
-    of float sums where cells move: a new call builds its neighbour list afresh).
+    run can be resumed by calling again with the result, or with `load_cells` of its
+    file. The cells carry the run's neighbour list (`cells.neighbours`) and the next call
+    goes on from it, so n calls give bit for bit the cells of one call of the same
+    iterations (same rules, key, dt, domain, division limit, influence radius and room).
+    A call builds a list afresh for cells that carry none or one of another radius,
+    capacity or `max_neighbours`: its cells then equal those of an uninterrupted run only
+    up to the order of float sums (a patched list puts the same pairs in other slots).
 
     Decisions where the thesis is silent: a cell divides at most once per iteration (the
     first `Divide` rule that fires sets the angle); children are never fixed, even of a
@@ -94,6 +100,13 @@ def simulate_cells(
     check_finite(dt, "dt")
     check_range(dt, "dt", low=0.0, low_open=True)
     check_range(influence_radius, "influence_radius", low=0.0, low_open=True)
+    radius = float(influence_radius) + SKIN
+    carried = cells.neighbours if isinstance(cells, Cells) else None
+    same_search = carried is not None and carried.radius == radius and carried.skin == SKIN
+    if max_neighbours is None:  # a resumed run keeps the room it had
+        max_neighbours = carried.max_neighbours if same_search else MAX_NEIGHBOURS
+    if bucket_size is None:
+        bucket_size = carried.bucket_size if same_search else BUCKET_SIZE
     check_count(max_neighbours, "max_neighbours", "neighbours", low=1)
     check_count(bucket_size, "bucket_size", "cells", low=1)
     if division_limit is not None:
@@ -115,7 +128,7 @@ def simulate_cells(
         domain=as_domain(domain),
         influence_radius=float(influence_radius),
         division_limit=division_limit,
-        search=Search(radius=float(influence_radius) + SKIN, skin=SKIN, max_neighbours=int(max_neighbours),
+        search=Search(radius=radius, skin=SKIN, max_neighbours=int(max_neighbours),
                       bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity),
                       patch_sizes=PATCH_SIZES),
     )
@@ -128,12 +141,15 @@ def simulate_cells(
 
 
 def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progress) -> Cells:
-    """`_run`, in pieces of equal length under a progress bar when asked. The key
-    schedule depends on the iteration only and the neighbour list goes from piece to
-    piece, so the pieces give the same cells as one run."""
+    """`_run`, in pieces of equal length under a progress bar when asked; the cells come
+    back carrying the neighbour list the run ended with. The key schedule depends on the
+    iteration only and the neighbour list goes from piece to piece (and from call to
+    call, with the cells), so the pieces give the same cells as one run, bit for bit."""
     neighbours = _first_neighbours(cells, settings)
+    cells = cells.with_neighbours(None)  # the list travels beside the cells inside a run
     if not progress or steps < 2 or not is_concrete(cells, rules, settings):
-        return _run(cells, neighbours, rules, settings, key, steps)[0]
+        cells, neighbours = _run(cells, neighbours, rules, settings, key, steps)
+        return cells.with_neighbours(neighbours)
     piece = max(1, steps // PIECES)
     with progress_bar(steps, progress if isinstance(progress, str) else "cells", unit="iteration") as bar:
         done = 0
@@ -144,12 +160,28 @@ def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progres
             bar.update(n)
             if int(cells.nonfinite_step) >= 0:
                 break
-    return cells
+    return cells.with_neighbours(neighbours)
+
+
+def _first_neighbours(cells: Cells, settings: Settings):
+    """The list a call starts from: the one the cells carry when it fits this search
+    (then the call goes on exactly as the run that left it), else a full build."""
+    search, carried = settings.search, cells.neighbours
+    if not search.fits(carried, cells.capacity):
+        return _build(cells.with_neighbours(None), settings)
+    if is_concrete(carried, cells.count) and int(carried.built_count) <= int(cells.count):
+        return carried.retagged(bucket_size=search.bucket_size)  # no build to compile
+    return _carry_on(cells, settings)
 
 
 @eqx.filter_jit
-def _first_neighbours(cells: Cells, settings: Settings):
+def _build(cells: Cells, settings: Settings):
     return settings.search.build(cells.position, cells.count)
+
+
+@eqx.filter_jit
+def _carry_on(cells: Cells, settings: Settings):
+    return settings.search.carry_on(cells.neighbours, cells.position, cells.count)
 
 
 @eqx.filter_jit
@@ -175,7 +207,8 @@ def needed_room(cells: Cells, influence_radius: float = INFLUENCE_RADIUS) -> tup
 
 def _check_dt(cells: Cells, settings: Settings) -> None:
     """ValueError when dt exceeds 2 / lambda_max of some reagent's exchange."""
-    largest = np.asarray(_exchange_spectral_radius(cells, _first_neighbours(cells, settings), settings))
+    largest = np.asarray(_exchange_spectral_radius(cells.with_neighbours(None), _first_neighbours(cells, settings),
+                                                   settings))
     limit = 2.0 / np.maximum(largest, 1e-30)
     worst = int(np.argmin(limit))
     if float(settings.dt) > limit[worst] * (1 + 1e-3):

@@ -8,6 +8,10 @@ unused capacity holding zeros. Running out of capacity, or out of room in the ne
 search, is recorded with the iteration where it happened (`overflow_step`,
 `neighbour_overflow_step`), never silently.
 
+The cells also carry the neighbour list their last run left (`neighbours`, None before any
+run): it is part of the run's state, so a run resumed from them, or from their file, goes
+on bit for bit as the uninterrupted run (`_neighbours`).
+
 Units: lengths are cell radii (cells of a square grid sit 2 apart, the influence radius
 is 3); angles are radians from the +x axis toward +y; time is iterations x dt.
 """
@@ -22,6 +26,7 @@ import numpy as np
 from jax import Array
 
 from .._checks import default_float
+from ._neighbours import NeighbourList
 
 NO_STEP = -1  # the value of a *_step field while nothing has happened
 STATUS_FIELDS = ("overflow_step", "neighbour_overflow_step", "nonfinite_step")  # what went wrong, and when
@@ -56,6 +61,10 @@ class Cells(eqx.Module):
             reagent concentrations are set to zero"), or a model's own lower limit for the
             reagents it reacts (FitzHugh-Nagumo's are -inf).
         anisotropic: (static) per reagent, whether its diffusion follows the polarity.
+        neighbours: the `NeighbourList` the last `simulate_cells` call ended with (None for
+            cells no run produced, and for cells rebuilt from their live buffers, as
+            `concatenate` does): the next call goes on from it, so a resumed run equals an
+            uninterrupted one bit for bit.
     """
 
     position: Array
@@ -74,6 +83,7 @@ class Cells(eqx.Module):
     upper: Array
     species: tuple[str, ...] = eqx.field(static=True)
     anisotropic: tuple[bool, ...] = eqx.field(static=True)
+    neighbours: NeighbourList | None = None
 
     @property
     def capacity(self) -> int:
@@ -133,10 +143,16 @@ class Cells(eqx.Module):
 
     # ---- building -----------------------------------------------------------------
     def with_capacity(self, capacity: int) -> "Cells":
-        """The same cells, and their run's status, in buffers of `capacity` entries (at
-        least `count`)."""
+        """The same cells, their run's status and their neighbour list, in buffers of
+        `capacity` entries (at least `count`)."""
         resized = concatenate([self], capacity)
-        return resized.replace(**{name: getattr(self, name) for name in STATUS_FIELDS})
+        resized = resized.replace(**{name: getattr(self, name) for name in STATUS_FIELDS})
+        carried = None if self.neighbours is None else self.neighbours.resized(int(capacity))
+        return resized.with_neighbours(carried)
+
+    def with_neighbours(self, neighbours: NeighbourList | None) -> "Cells":
+        """A copy carrying `neighbours` (None: none, so the next run builds its own)."""
+        return eqx.tree_at(lambda c: c.neighbours, self, neighbours, is_leaf=lambda x: x is None)
 
     def replace(self, **changes) -> "Cells":
         """A copy with some fields replaced (e.g. `cells.replace(upper=...)`)."""
