@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import default_float
+from ._checks import check_run_size, check_shape, default_float
 from .models import AbstractModel
 from ._sweep_members import _check_values
 
@@ -22,7 +22,13 @@ def parameter_map(model: AbstractModel, shape, x=None, y=None) -> AbstractModel:
     `model.parameters()` works (limits included). Run it with `simulate` on a lattice of
     `shape`; `map_image` labels the picture with the ranges.
     """
-    rows, cols = (int(s) for s in shape)
+    # the lattice is checked before a map is built: whole sizes (not floored), and the run's
+    # memory with each map counted as one more field per cell (`check_run_size`)
+    rows, cols = check_shape(shape, "parameter_map: shape", ndim=2)
+    maps = sum(spec is not None for spec in (x, y))
+    check_run_size((rows, cols), model.n_species + maps,
+                   what=f"parameter_map: shape {rows}x{cols} with {model.n_species} species and {maps} parameter "
+                        "map(s); this run")
     changes = {}
     for axis, spec in (("x", x), ("y", y)):
         if spec is None:

@@ -41,6 +41,7 @@ from ._growth import Growth
 from ._initial import initial_state
 from .models import AbstractModel
 from ._bounds import bounds_policy
+from ._checks import check_shape, check_step_counter
 from .solvers import Euler, SteadyState, as_solver, until_to_dict
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict
 from ._files import to_jsonable
@@ -113,7 +114,11 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
     tail = (0 if until is not None else min(steps, max(1, steps // 10))) if settle_steps is None else int(settle_steps)
     if not 0 <= tail <= steps:
         raise ValueError(f"sweep: settle_steps must lie in [0, steps={steps}] (got {settle_steps!r})")
-    names, axes, values, _ = sweep_members(model, vary, growth, dt)
+    # sizes before anything is built or compiled: the step counter (int32), the member count and
+    # the memory of the run (`check_members`)
+    check_step_counter(np.max(np.asarray(state.step)) if isinstance(state, State) else 0, steps, "sweep: steps")
+    names, axes, values, _ = sweep_members(model, vary, growth, dt, shape=_member_lattice(state, shape, capacity),
+                                           species=model.n_species)
     n = len(values[names[0]])
     sources = tuple(sources or ())
     seed = None
@@ -164,6 +169,20 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
                          initial=starts.state, growth=growth, sources=sources, key=key, bounds=bounds)
     result.table = member_table(result, spec, boundary == "wrap", settle_tol, describe_members)
     return result
+
+
+def _member_lattice(state, shape, capacity):
+    """The lattice (its capacity) one member steps, from the arguments alone (nothing built);
+    None when they give none (`_Starts.make` then refuses them)."""
+    if state is None:
+        if shape is None:
+            return None
+        if capacity is not None:
+            return check_shape(capacity, "sweep: capacity")
+        return check_shape(shape, "sweep: shape")
+    if isinstance(state, State) and state.fields.ndim in (3, 4):
+        return tuple(state.fields.shape[state.fields.ndim - 2:])
+    return None
 
 
 @dataclasses.dataclass

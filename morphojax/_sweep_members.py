@@ -11,16 +11,19 @@ serves every value.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping, Sequence
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ._checks import STEP_COUNTER_MAX, check_run_size
 from .models import AbstractModel
 
 GROWTH_RATE = "growth_rate"  # the growth schedule's rate (needs growth=Growth(...))
 DT = "dt"  # the time step, per member (steps stay the same for every member)
+MAX_MEMBERS = STEP_COUNTER_MAX  # members are indexed and keyed (fold_in) by int32 counters
 
 
 def allowed_names(model: AbstractModel, growth=None) -> list[str]:
@@ -73,8 +76,32 @@ def _base_value(model, growth, dt, name):
     return float(value)
 
 
-def sweep_members(model, vary, growth, dt):
-    """(names, grid axes or None, per-member values {name: (n,) array}, result shape)."""
+def check_members(names, counts, *, grid: bool = True, shape=None, species: int = 2) -> int:
+    """The number of members of a sweep of `names` with `counts` values each (a grid: their
+    product; a list of sets: one count), counted exactly before any member's values are built.
+    Refused when it is beyond what the int32 member counters hold or, given the lattice `shape`
+    (or capacity) of one member and its `species`, when the run would need more memory than
+    the limit (`_checks.check_run_size`, the estimate the command line uses)."""
+    n = math.prod(int(c) for c in counts)
+    if grid and len(counts) > 1:
+        which = f"{n} members ({' x '.join(names)} = {' x '.join(str(int(c)) for c in counts)})"
+    else:
+        which = f"{n} members ({names[0]})" if grid else f"{n} members (parameter sets of {', '.join(names)})"
+    if n > MAX_MEMBERS:
+        raise ValueError(f"sweep: vary gives {which}; a sweep has at most {MAX_MEMBERS} members, what its int32 "
+                         "member counter holds")
+    if shape is not None:
+        cells = "x".join(str(int(s)) for s in shape)
+        check_run_size(shape, species, members=n,
+                       what=f"sweep: vary gives {which}, each {int(species)} species on {cells} cells; this sweep")
+    return n
+
+
+def sweep_members(model, vary, growth, dt, *, shape=None, species: int = 2):
+    """(names, grid axes or None, per-member values {name: (n,) array}, result shape).
+
+    The member count is checked (`check_members`, with the lattice `shape` and `species` of
+    one member when given) before the members' values are built."""
     if isinstance(vary, Mapping):
         if not vary:
             raise ValueError(f"sweep: vary is empty; name at least one parameter: {_describe_allowed(model, growth)}")
@@ -82,6 +109,7 @@ def sweep_members(model, vary, growth, dt):
         for name in names:
             _check_name(model, growth, name)
         axes = tuple(_check_values(name, vary[name]) for name in names)
+        check_members(names, [len(a) for a in axes], shape=shape, species=species)
         mesh = np.meshgrid(*axes, indexing="ij")
         values = {name: m.reshape(-1) for name, m in zip(names, mesh)}
         return names, axes, values, tuple(len(a) for a in axes)
@@ -97,6 +125,7 @@ def sweep_members(model, vary, growth, dt):
                              f"allowed: {_describe_allowed(model, growth)}")
         for name in names:
             _check_name(model, growth, name)
+        check_members(names, [len(rows)], grid=False, shape=shape, species=species)
         values = {}
         for name in names:
             base = None if all(name in r for r in rows) else _base_value(model, growth, dt, name)

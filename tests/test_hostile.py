@@ -482,3 +482,68 @@ def test_python_api_refuses_automaton_and_potts_lattices_beyond_memory(monkeypat
     cells = np.zeros((200, 200), np.int8)
     with pytest.raises(ValueError, match=r"automaton run \(200x200 cells, 3 states\) needs about"):
         mj.YoungCA([(2.3, 6.01, 1.0, -0.3), (2.3, 6.01, 1.0, -0.3)]).run(cells, 1)
+
+
+# ---- 1 (continued). a sweep's size in the Python API, not only on the command line ---------------
+def _no_grid(*args, **kwargs):
+    raise AssertionError("the sweep built its members (or ran them) before checking its size")
+
+
+@FEW
+@given(counts=st.lists(st.integers(1, 1000), min_size=1, max_size=3), side=st.integers(1, 3000),
+       listed=st.booleans())
+def test_python_sweep_sizes_are_refused_before_the_grid_is_built(monkeypatch, counts, side, listed):
+    """`mj.sweep` refuses, from the counts alone, a sweep whose members need more memory than
+    the limit (the estimate `check_run_size` makes for the command line), naming `vary` and
+    stating the estimate; what passes goes on to the next check (here: no `key`, so nothing runs)."""
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "64M")
+    names = ["ratio", "upper_a", "lower_a"][:len(counts)]
+    members = int(np.prod(counts, dtype=object))
+    if listed and members <= 10**5:  # a list of parameter sets: one member per set (the list is the user's)
+        counts, names, vary = [members], names[:1], [{"ratio": 4.0}] * members
+    else:
+        vary = {name: np.linspace(4.0, 5.0, count) for name, count in zip(names, counts)}
+    cells = side * side * 2
+    needed = cells * (64 * min(members, 64) + 16 * members)
+    with monkeypatch.context() as patch, pytest.raises(ValueError) as err:
+        if needed > 64 * 2**20:
+            patch.setattr(np, "meshgrid", _no_grid)
+        mj.sweep(mj.Turing(), vary, shape=(side, side), key=None, dt=0.01, steps=10)
+    if needed > 64 * 2**20:
+        assert f"sweep: vary gives {members} members (" in str(err.value)
+        assert f"each 2 species on {side}x{side} cells; this sweep needs about" in str(err.value)
+        assert "the limit is 67.1 MB" in str(err.value)
+    else:
+        assert "give a shared initial `state`" in str(err.value)
+
+
+def test_python_sweep_member_count_and_steps_are_checked_against_the_counters(monkeypatch):
+    monkeypatch.setattr(np, "meshgrid", _no_grid)  # 2^32 members: the grid alone would need 68 GB
+    with pytest.raises(ValueError, match=r"vary gives 4294967296 members \(ratio x upper_a = 65536 x 65536\); a sweep "
+                                         r"has at most 2147483647 members"):
+        mj.sweep(mj.Turing(), {"ratio": range(2**16), "upper_a": range(2**16)}, shape=(4, 4), key=0, dt=0.01)
+    with pytest.raises(ValueError, match="sweep: steps must keep the step counter within int32"):
+        mj.sweep(mj.Turing(), {"ratio": [4.0, 5.0]}, shape=(4, 4), key=0, dt=0.01, steps=2**31 + 5)
+    with pytest.raises(ValueError, match=r"sweep: shape must hold whole numbers, not 16.5"):
+        mj.sweep(mj.Turing(), {"ratio": [4.0, 5.0]}, shape=(16.5, 16), key=0, dt=0.01)
+
+
+def test_python_sweep_states_and_parameter_maps_are_sized_before_the_run(monkeypatch):
+    """The issue's own wording, for a shared start given as a State, a capacity, and a map."""
+    import morphojax._sweep
+
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "12G")
+    monkeypatch.setattr(morphojax._sweep, "run_batched", _no_grid)  # refused before the run, not by it
+    state = mj.State.from_arrays([np.full((500, 500), 4.0), np.full((500, 500), 4.5)])
+    with pytest.raises(ValueError, match=r"sweep: vary gives 4000 members \(ratio\), each 2 species on 500x500 cells; "
+                                         r"this sweep needs about 34 GB; the limit is 12.9 GB"):
+        mj.sweep(mj.Turing(), {"ratio": np.linspace(4, 40, 4000)}, state=state, dt=0.01, steps=10)
+    with pytest.raises(ValueError, match=r"on 2000x2000 cells; this sweep needs about"):  # the capacity, not the shape
+        mj.sweep(mj.Turing(), {"ratio": np.linspace(4, 40, 400)}, shape=(8, 8), capacity=(2000, 2000), key=0,
+                 dt=0.01, steps=10)
+    with pytest.raises(ValueError, match=r"parameter_map: shape 1000000x1000000 with 2 species and 1 parameter "
+                                         r"map\(s\); this run needs about"):
+        mj.parameter_map(mj.Turing(), (10**6, 10**6), x=("ratio", 4.0, 40.0))
+    with pytest.raises(ValueError, match=r"parameter_map: shape must hold whole numbers, not 16.5"):
+        mj.parameter_map(mj.Turing(), (16.5, 16), x=("ratio", 4.0, 40.0))
+    assert mj.parameter_map(mj.Turing(), (4, 6), x=("ratio", 4.0, 40.0)).ratio.shape == (4, 6)
