@@ -75,8 +75,11 @@ DEEP_MODES = {"I;16": 65535.0, "I;16B": 65535.0, "I;16L": 65535.0, "I;16N": 6553
 
 def open_image(path: Path, what: str) -> Image.Image:
     """The image at `path`, loaded (EXIF rotation applied) after its size, read from its header,
-    was checked against the memory limit; any failure is a ValueError naming the file."""
+    was checked against the memory limit; any failure is a ValueError naming the file. A 16-bit
+    PNG (grey, colour or with alpha) comes back at its depth as a `DeepPicture`, never clipped
+    or cut to 8 bits (see `morphojax._deep_png`)."""
     from morphojax._checks import check_memory  # the package's one memory limit (MORPHOJAX_MAX_MEMORY)
+    from morphojax._deep_png import read_deep_png
 
     if path.exists() and not path.is_file():
         raise ValueError(f"{what}: {path} is not a regular file")
@@ -84,6 +87,9 @@ def open_image(path: Path, what: str) -> Image.Image:
         with Image.open(path) as im:
             width, height = im.size  # from the header: nothing decoded yet
             check_memory(width * height * PIXEL_BYTES, f"{what}: the {width}x{height} image {path}")
+            deep = read_deep_png(im, path)  # None for anything but a 16-bit PNG
+            if deep is not None:
+                return deep
             im = ImageOps.exif_transpose(im)
             im.load()
             return im
@@ -102,6 +108,10 @@ def open_image(path: Path, what: str) -> Image.Image:
 def _channel(img: Image.Image, channel: str) -> np.ndarray:
     if channel not in CHANNELS:
         raise ValueError(f"unknown channel {channel!r}; allowed: {', '.join(CHANNELS)}")
+    from morphojax._deep_png import DeepPicture
+
+    if isinstance(img, DeepPicture):  # a 16-bit PNG from `open_image`: every channel at its depth
+        return img.channel(channel)
     if img.mode in DEEP_MODES or img.mode in ("I", "F"):  # one deep grey channel: read at its depth
         if channel == "alpha":
             raise ValueError("channel 'alpha' requested but the image has no alpha channel")

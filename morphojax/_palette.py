@@ -67,6 +67,7 @@ def photo_stops(source, crop=None, k: int = 3, pigment: str = "dark", seed: int 
     check_choice(pigment, "pigment", ("dark", "light"))
     if isinstance(source, (str, Path)):
         from ._checks import check_memory
+        from ._deep_png import read_deep_png
         from ._files import check_regular_file
 
         check_regular_file(source, "image")
@@ -74,7 +75,9 @@ def photo_stops(source, crop=None, k: int = 3, pigment: str = "dark", seed: int 
             with Image.open(source) as im:
                 check_memory(im.size[0] * im.size[1] * 16, f"Gradient.from_photo: the {im.size[0]}x{im.size[1]} "
                              f"image {source}")  # its size, from the header, before it is decoded
-                img = ImageOps.exif_transpose(im).convert("RGB")
+                # a 16-bit PNG scaled to 8 bits (Pillow's convert clips a 16-bit grey at 255)
+                deep = read_deep_png(im, source)
+                img = (deep if deep is not None else ImageOps.exif_transpose(im)).convert("RGB")
         except ValueError:
             raise
         except (OSError, SyntaxError, EOFError, TypeError, IndexError, MemoryError, Image.DecompressionBombError) as err:

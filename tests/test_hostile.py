@@ -264,7 +264,9 @@ def test_broken_images_raise_value_error(tmp_path_factory, data, cut):
     folder = tmp_path_factory.mktemp("img")
     good = folder / "good.png"
     Image.fromarray((np.arange(64 * 64).reshape(64, 64) % 251).astype(np.uint8)).save(good)
-    for name, content in (("random.png", data), ("cut.png", good.read_bytes()[:cut])):
+    deep = _png16(folder / "deep.png", (np.arange(64 * 64 * 3).reshape(64, 64, 3) * 97 % 65536).astype(np.uint16))
+    for name, content in (("random.png", data), ("cut.png", good.read_bytes()[:cut]),
+                          ("cut16.png", deep.read_bytes()[:cut])):
         (folder / name).write_bytes(content)
         try:
             fitting.load_target(folder / name, cell_pixels=2.0)
@@ -284,6 +286,113 @@ def test_sixteen_bit_pngs_are_read_at_their_depth(tmp_path):
     Image.fromarray(np.tile(stripes, (64, 1))).save(tmp_path / "deep.png")
     target = fitting.load_target(tmp_path / "deep.png", cell_pixels=2.0)
     assert target.pixels.min() == 0.0 and target.pixels.max() == 1.0  # contrast kept, not clipped to 255
+
+
+def _png16(path: Path, samples, *, interlace=False) -> Path:
+    """A 16-bit PNG written by hand (Pillow writes 16-bit grey only): `samples` (rows, cols) grey
+    or (rows, cols, 2|3|4) grey+alpha, RGB, RGBA; rows cycle through the five filters (encoded
+    from the samples, so they vectorise), Adam7 interlacing on request."""
+    import struct
+    import zlib
+
+    def filtered(raw, bpp):  # raw (rows, bytes) -> each row with its filter byte, filters 0-4 in turn
+        r = raw.astype(np.int32)
+        left = np.pad(r, ((0, 0), (bpp, 0)))[:, :-bpp]
+        up = np.pad(r, ((1, 0), (0, 0)))[:-1]
+        corner = np.pad(up, ((0, 0), (bpp, 0)))[:, :-bpp]
+        p = left + up - corner
+        pa, pb, pc = abs(p - left), abs(p - up), abs(p - corner)
+        paeth = np.where((pa <= pb) & (pa <= pc), left, np.where(pb <= pc, up, corner))
+        preds = [0 * r, left, up, (left + up) // 2, paeth]
+        return b"".join(bytes([y % 5]) + ((r[y] - preds[y % 5][y]) % 256).astype(np.uint8).tobytes()
+                        for y in range(len(r)))
+
+    a = np.asarray(samples, ">u2")
+    a = a[..., None] if a.ndim == 2 else a
+    rows, cols, bands = a.shape
+    passes = ([(0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2)]
+              if interlace else [(0, 0, 1, 1)])
+    data = b"".join(filtered(np.ascontiguousarray(sub).reshape(len(sub), -1).view(np.uint8), 2 * bands)
+                    for sub in (a[y0::dy, x0::dx] for x0, y0, dx, dy in passes) if sub.size)
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    head = struct.pack(">IIBBBBB", cols, rows, 16, {1: 0, 2: 4, 3: 2, 4: 6}[bands], 0, 0, int(interlace))
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", head) + chunk(b"IDAT", zlib.compress(data))
+                     + chunk(b"IEND", b""))
+    return path
+
+
+@FEW
+@given(data=st.data(), bands=st.sampled_from([1, 2, 3, 4]), interlace=st.booleans())
+def test_sixteen_bit_colour_pngs_match_their_eight_bit_versions(tmp_path_factory, data, bands, interlace):
+    """A 16-bit PNG of any kind (grey, grey+alpha, RGB, RGBA; every filter; interlaced or not)
+    is read at 16 bits: each channel is its samples / 65535 exactly, and within 1/255 of the
+    same picture saved at 8 bits (its contrast too), where Pillow alone keeps 8 bits of colour."""
+    from PIL import Image
+
+    pytest.importorskip("fitting")
+    from fitting._target import _channel, open_image
+
+    rows, cols = data.draw(st.integers(1, 24)), data.draw(st.integers(1, 24))
+    samples = np.asarray(data.draw(st.lists(st.integers(0, 65535), min_size=rows * cols * bands,
+                                            max_size=rows * cols * bands)), np.uint16).reshape(rows, cols, bands)
+    folder = tmp_path_factory.mktemp("deep")
+    deep = open_image(_png16(folder / "deep.png", samples[..., 0] if bands == 1 else samples, interlace=interlace),
+                      "test")
+    eight = np.round(samples / 257.0).astype(np.uint8)
+    Image.fromarray(eight[..., 0] if bands == 1 else eight, {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[bands]).save(
+        folder / "eight.png")
+    shallow = open_image(folder / "eight.png", "test")
+    exact = samples / 65535.0
+    own = {"red": exact[..., 0 if bands < 3 else 0], "green": exact[..., 0 if bands < 3 else 1],
+           "blue": exact[..., 0 if bands < 3 else 2], "alpha": exact[..., -1] if bands in (2, 4) else None}
+    for channel in ("red", "green", "blue", "alpha", "luminance", "value"):
+        if channel == "alpha" and bands in (1, 3):
+            with pytest.raises(ValueError, match="no alpha channel"):
+                _channel(deep, channel)
+            continue
+        got, want = _channel(deep, channel), _channel(shallow, channel)
+        assert got.shape == (rows, cols)
+        if channel in own:
+            np.testing.assert_allclose(got, own[channel], atol=1e-7)  # all 16 bits, not the high byte
+            assert abs(np.ptp(got) - np.ptp(want)) <= 1 / 255 + 1e-9  # the contrast of the 8-bit picture
+        assert np.abs(got - want).max() <= 1 / 255 + 1e-4, channel  # (+ Pillow's 8-bit luminance weights)
+
+
+@pytest.mark.parametrize("bands", [1, 2, 3, 4])
+def test_sixteen_bit_contrast_below_eight_bits_is_kept(tmp_path, bands):
+    """Stripes of 1030 and 1100 share their high byte (4): at 8 bits they are one grey, and the
+    target was refused as "no contrast"; at 16 bits they are the target's 0 and 1."""
+    fitting = pytest.importorskip("fitting")
+    stripes = np.tile(np.where(np.arange(64) % 16 < 8, 1030, 1100).astype(np.uint16), (64, 1))
+    samples = np.stack([stripes] * bands, axis=-1)
+    if bands in (2, 4):
+        samples[..., -1] = 65535  # opaque
+    path = _png16(tmp_path / "faint.png", samples[..., 0] if bands == 1 else samples)
+    target = fitting.load_target(path, cell_pixels=2.0)
+    assert target.pixels.min() == 0.0 and target.pixels.max() == 1.0
+    assert np.ptp(target.field) > 0.9 and target.rgb is not None and target.rgb.shape[:2] == (64, 64)
+    crop = fitting.load_target(path, crop=(0, 0, 40, 32), channel="blue", cell_pixels=2.0)
+    assert crop.pixels.shape == (32, 40) and crop.pixels.max() == 1.0
+    if bands == 1:  # the palette of a photo reads it at its depth too (Pillow clips a 16-bit grey at 255)
+        stripes[:, ::2] = 50000
+        stops = mj.Gradient.from_photo(_png16(tmp_path / "grey.png", stripes)).stops
+        assert len({colour for _, colour in stops}) >= 2
+
+
+def test_sixteen_bit_colour_png_that_pillow_cannot_read_deep_is_refused(tmp_path, monkeypatch):
+    """Where this Pillow cannot decode the low bytes (a raw mode it lacks), the file is
+    refused by name with the advice to convert it, never read at 8 bits."""
+    import morphojax._deep_png as deep
+
+    fitting = pytest.importorskip("fitting")
+    monkeypatch.setitem(deep.DEEP_RAWMODES, "RGB;16B", ("RGB", "RGB;99L"))
+    path = _png16(tmp_path / "rgb16.png", np.full((20, 20, 3), 1000, np.uint16))
+    with pytest.raises(ValueError, match=r"rgb16\.png is a 16-bit RGB PNG, which this Pillow reads only at 8 bits .*"
+                                         r"convert it to 8-bit colour or 16-bit grey"):
+        fitting.load_target(path, cell_pixels=2.0)
 
 
 def test_cli_prints_one_line_and_debug_shows_the_traceback(tmp_path, capsys):
