@@ -48,14 +48,14 @@ import numpy as np
 from .._checks import check_choice
 from ._base import AbstractDomain
 from ._mesh_build import cotangent_operator, directional_weights, largest_eigenvalue, neighbour_table
+from ._mesh_files import read_mesh_file
 from ._mesh_operator import PAIRABLE, apply_operator, gathered_packed, pack_pairs, unpack_pairs
 from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
-FORMATS = ("obj", "ply", "stl", "off")
 
 
-# ---- checking and welding a mesh in NumPy ---------------------------------------------------
+# ---- checking a mesh in NumPy -----------------------------------------------------------------
 def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """(vertices float64 (V, 3), faces int64 (F, 3)) after checking a triangle mesh.
 
@@ -115,16 +115,6 @@ def check_uv_layout(uv, uv_faces, faces):
     if uv_faces.size and (uv_faces.min() < 0 or uv_faces.max() >= len(uv)):
         raise ValueError(f"uv_faces must index the {len(uv)} texture vertices (got {uv_faces.min()}..{uv_faces.max()})")
     return uv, uv_faces, faces
-
-
-def weld(vertices, faces):
-    """(vertices, faces) with the vertices of equal position merged, in order of first use."""
-    vertices = np.asarray(vertices)
-    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first)
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    return vertices[first[order]], rank[np.asarray(inverse).ravel()][np.asarray(faces)]
 
 
 # ---- the domain -------------------------------------------------------------------------------
@@ -326,8 +316,6 @@ class Mesh(AbstractDomain):
         vertex numbering is kept, except STL's corners, which are welded by position; NaN
         coordinates, unused vertices and degenerate faces are refused by the checks of `Mesh`;
         an OBJ's texture coordinates are kept, welded across their seams)."""
-        from ._mesh_files import read_mesh_file
-
         data = read_mesh_file(path)
         try:
             if "uv" in data:

@@ -2,10 +2,11 @@
 
 Every reader keeps the file's vertex numbering (per-vertex data must not shift): no vertex
 is merged, dropped or reordered, except STL's, which stores each triangle's corners apart
-and is welded by position. NaN or infinite coordinates, indices outside the vertex list and
+and is welded by position (`weld`). NaN or infinite coordinates, indices outside the vertex list and
 vertices no face uses are refused by `Mesh`'s checks, never repaired. Text is read as bytes
 and decoded as Latin-1, so a stray non-ASCII byte in a comment or a name cannot fail the read;
-every failure is one ValueError naming the file and what is wrong.
+every failure is one ValueError naming the file and what is wrong. This module knows nothing
+of `Mesh`: `Mesh.from_file` (`_mesh`) builds the domain from the arrays it returns.
 """
 
 from __future__ import annotations
@@ -66,6 +67,11 @@ def _index(text: str, count: int, what: str, line: int) -> int:
     return i - 1 if i > 0 else count + i
 
 
+def _arrays(vertices, faces) -> dict:
+    """{"vertices": (V, 3) float64, "faces": (F, 3) int64}, from lists or arrays (empty ones too)."""
+    return {"vertices": np.asarray(vertices, np.float64).reshape(-1, 3), "faces": np.asarray(faces, np.int64).reshape(-1, 3)}
+
+
 def _fan(corners):
     """A polygon's corners as triangles (a fan from the first corner, as trimesh splits quads)."""
     return [(corners[0], corners[k], corners[k + 1]) for k in range(1, len(corners) - 1)]
@@ -99,7 +105,7 @@ def _read_obj(path: Path) -> dict:
             faces += _fan(corners)
             if textured:
                 uv_faces += _fan(tcorners)
-    out = {"vertices": np.asarray(vertices, np.float64).reshape(-1, 3), "faces": np.asarray(faces, np.int64).reshape(-1, 3)}
+    out = _arrays(vertices, faces)
     if textured and uvs and len(uv_faces) == len(faces):
         out["uv"], out["uv_faces"] = np.asarray(uvs, np.float64), np.asarray(uv_faces, np.int64)
     return out
@@ -149,12 +155,10 @@ def _read_off(path: Path) -> dict:
         # colours may follow a face's corners on its line; they are skipped with the line's
         # remaining tokens only when the next token cannot start a face: OFF files from
         # trimesh and most tools carry none
-    return {"vertices": np.asarray(vertices, np.float64).reshape(-1, 3), "faces": np.asarray(faces, np.int64).reshape(-1, 3)}
+    return _arrays(vertices, faces)
 
 
 def _read_stl(path: Path) -> dict:
-    from ._mesh import weld
-
     raw = path.read_bytes()
     if len(raw) >= 84:
         (count,) = struct.unpack("<I", raw[80:84])
@@ -162,7 +166,7 @@ def _read_stl(path: Path) -> dict:
             records = np.frombuffer(raw, dtype=np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)),
                                                          ("attribute", "<u2")]), count=count, offset=84)
             corners = records["corners"].astype(np.float64).reshape(-1, 3)
-            return _welded(corners, weld)
+            return _welded(corners)
     text = raw.decode("latin-1")
     if not text.lstrip().lower().startswith("solid"):
         raise MeshFileError("it is neither a binary STL (its size disagrees with its triangle count) nor an "
@@ -176,10 +180,21 @@ def _read_stl(path: Path) -> dict:
             corners.append([_number(t, "coordinate", n) for t in parts[1:]])
     if len(corners) % 3:
         raise MeshFileError(f"it holds {len(corners)} corners, not a whole number of triangles")
-    return _welded(np.asarray(corners, np.float64).reshape(-1, 3), weld)
+    return _welded(np.asarray(corners, np.float64).reshape(-1, 3))
 
 
-def _welded(corners, weld) -> dict:
+def weld(vertices, faces):
+    """(vertices, faces) with the vertices of equal position merged, in order of first use."""
+    vertices = np.asarray(vertices)
+    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return vertices[first[order]], rank[np.asarray(inverse).ravel()][np.asarray(faces)]
+
+
+def _welded(corners) -> dict:
+    """STL's triangles, each with its own three corners, welded by position."""
     if not np.isfinite(corners).all():
         raise MeshFileError("its corners hold NaN or infinite coordinates")
     if len(corners) == 0:
@@ -199,6 +214,4 @@ def _read_ply(path: Path) -> dict:
         raise MeshFileError(f"trimesh could not read it: {err}") from None
     except Exception as err:  # trimesh raises what its parsers raise; all of it means a bad file
         raise MeshFileError(f"{type(err).__name__}: {str(err).strip() or 'unreadable'}") from None
-    vertices, faces = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), np.float64), \
-        np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), np.int64)
-    return {"vertices": vertices.reshape(-1, 3), "faces": faces.reshape(-1, 3)}
+    return _arrays(getattr(loaded, "vertices", np.zeros((0, 3))), getattr(loaded, "faces", np.zeros((0, 3))))
