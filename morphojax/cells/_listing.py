@@ -39,8 +39,10 @@ Conventions (the thesis's, made explicit):
 
 The reader is split by job: `_listing_commands` (the parsed commands), `_listing_tokens`
 (the line cursor and `ListingError`), `_listing_read` (the parser), `_listing_prepattern`
-(executing `use`/`create`/`set`) and `_listing_write` (`to_text` and the comparisons).
-This module holds the `Listing`, the shipped listings and `load_listing`.
+(executing `use`/`create`/`set`) and `_listing_write` (statements written back and rules
+compared). This module holds the `Listing` (which writes and compares itself with
+`_listing_write`'s pieces), the shipped listings and `load_listing`; it imports the others,
+and none of them imports it.
 """
 
 from __future__ import annotations
@@ -70,8 +72,8 @@ from ._listing_commands import (
 )
 from ._listing_prepattern import _Prepattern
 from ._listing_read import _Reader
-from ._listing_tokens import ListingError
-from ._listing_write import _listing_key, _write_listing, same_rules
+from ._listing_tokens import ListingError, format_number
+from ._listing_write import domain_key, format_command, format_rule, rule_key, same_rules
 from ._rules import Divide, Rule
 from ._space import Box, Packed
 from ._state import Cells
@@ -191,7 +193,7 @@ class Listing:
         """
         if not self.chemicals:
             raise ValueError(f"{self.name}: the listing defines no chemical; the cells need at least one")
-        builder = _Prepattern(self)
+        builder = _Prepattern(self.name, self.text, self.chemicals, self.directory)
         keys = jax.random.split(key, max(len(self.commands), 1))
         for command, command_key in zip(self.commands, keys):
             builder.execute(command, command_key)
@@ -303,12 +305,56 @@ class Listing:
         out, every rule written from its `Rule` (an `and` chain one line per condition,
         each carrying the chain's window). `load_listing(listing.to_text())` equals
         `listing`."""
-        return "\n".join(_write_listing(self)) + "\n"
+        lines = []
+        for c in self.chemicals:
+            limit = f" limit {format_number(c.limit)}" if c.limit is not None else ""
+            lines.append(f"define chemical {c.name}{limit}{' anisotropic' if c.anisotropic else ''}")
+        if self.division_limit is not None:
+            lines.append(f"define division_limit {self.division_limit}")
+        if isinstance(self.domain, Box):
+            lines.append(f"define domain {format_number(self.domain.width)} {format_number(self.domain.height)}")
+        elif isinstance(self.domain, Packed):
+            default = np.asarray(self.domain.area) == np.asarray(Packed().area)
+            lines.append("define domain packed" + ("" if default else f" area {format_number(self.domain.area)}"))
+        if self.dt != 1.0:
+            lines.append(f"define time_step {format_number(self.dt)}")
+        if self.seed is not None:
+            lines.append(f"use seed {self.seed}")
+        lines += [format_command(c) for c in self.commands]
+        for rule in self.rules:
+            lines += format_rule(rule)
+        if self.colormap_select is not None:
+            lines.append(f"colormap select {self.colormap_select}")
+        for slot, colour in self.colormap_slots:
+            use = f'color "{colour}"' if isinstance(colour, str) else "rgb " + " ".join(str(int(v)) for v in colour)
+            lines.append(f"colormap slot {slot} use {use}")
+        if self.texture is not None:
+            lines.append(f"texture size {self.texture[0]} {self.texture[1]}")
+        if self.zoom is not None:
+            lines.append(f"zoom level {format_number(self.zoom)}")
+        for snap in self.snaps:
+            if snap.every is None:
+                text = "snap at " + " ".join(str(i) for i in snap.at)
+            else:
+                text = f"snap from {snap.at[0]} repeat {snap.every[0]} step {snap.every[1]}"
+            lines.append(text + (" then exit" if snap.exit else ""))
+        if self.stop is not None:
+            lines.append(f"stop at {self.stop}")
+        return "\n".join(lines) + "\n"
 
     def __eq__(self, other):
         if not isinstance(other, Listing):
             return NotImplemented
-        return _listing_key(self) == _listing_key(other)
+        return self._key() == other._key()
+
+    def _key(self):
+        """What equal listings share: every field but the name, the text, the warnings and
+        the folder, with rules and the domain compared by their structure and numbers."""
+        return (
+            self.chemicals, self.dt, self.stop, domain_key(self.domain), self.division_limit,
+            self.seed, self.commands, tuple(rule_key(r) for r in self.rules), self.colormap_select,
+            self.colormap_slots, self.texture, self.zoom, self.snaps,
+        )
 
     __hash__ = None
 

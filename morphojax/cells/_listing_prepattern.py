@@ -1,7 +1,8 @@
 """The prepattern of a listing (thesis 4.8.2-4.8.4): `_Prepattern` executes the `use`,
 `create` and `set` commands in order on NumPy arrays of the cells placed so far (the `use`
 defaults apply to later `create`s; `set` replaces values of cells already created) and
-makes the initial `Cells`. `Listing.prepattern` drives it, one key per command.
+makes the initial `Cells`. `Listing.prepattern` drives it, one key per command, and gives it
+the parts of the listing it reads (this module does not import `_listing`).
 """
 
 from __future__ import annotations
@@ -9,26 +10,25 @@ from __future__ import annotations
 import math
 import stat
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import NoReturn
 
 import jax
 import numpy as np
 
-from ._listing_commands import Create, SetCells, UseChemical, UsePolarity
+from ._listing_commands import Chemical, Create, SetCells, UseChemical, UsePolarity
 from ._listing_tokens import ListingError
 from ._prepattern import SPACING, cells_at, disc_positions, grid_positions
 from ._state import Cells, make_cells
 
-if TYPE_CHECKING:
-    from ._listing import Listing
-
 
 class _Prepattern:
-    """The cells placed so far (NumPy arrays of the live cells) and the `use` defaults."""
+    """The cells placed so far (NumPy arrays of the live cells) and the `use` defaults, for the
+    listing `name` with source `text` (for errors), its `chemicals` and the `directory` its
+    shape files are read from."""
 
-    def __init__(self, listing: Listing):
-        self.listing = listing
-        self.species = listing.species
+    def __init__(self, name: str, text: str, chemicals: tuple[Chemical, ...], directory: Path | None):
+        self.name, self.text, self.chemicals, self.directory = name, text, chemicals, directory
+        self.species = tuple(c.name for c in chemicals)
         s = len(self.species)
         self.defaults = {"conc": np.zeros(s), "conc_dev": np.zeros(s), "diff": np.zeros(s), "diff_dev": np.zeros(s)}
         self.polarity: tuple[float | None, float] = (0.0, 0.0)  # radians: polarised along +x by default
@@ -40,7 +40,7 @@ class _Prepattern:
         self.fixed = np.zeros(0, bool)
 
     def fail(self, line: int, message: str) -> NoReturn:
-        raise ListingError.at(self.listing.name, self.listing.text.splitlines(), line, message)
+        raise ListingError.at(self.name, self.text.splitlines(), line, message)
 
     def execute(self, command, key) -> None:
         if isinstance(command, UseChemical):
@@ -90,7 +90,7 @@ class _Prepattern:
         """Every letter of the file a cell of a square grid (4.8.3): the file's first row
         is the top one; cells are numbered from the lowest row up, left to right, and the
         letters' bounding box is centred on `at`."""
-        rows = read_shape_file(self.listing.directory, command.file, lambda why: self.fail(command.line, why))
+        rows = read_shape_file(self.directory, command.file, lambda why: self.fail(command.line, why))
         cells = [(-r, c) for r, text in enumerate(rows) for c, ch in enumerate(text) if ch.isalpha()]
         if not cells:
             self.fail(command.line, f"the shape file {command.file!r} holds no letter (each letter is a cell)")
@@ -126,12 +126,12 @@ class _Prepattern:
 
     def cells(self) -> Cells:
         if self.position.shape[0] == 0:
-            raise ValueError(f"{self.listing.name}: the listing creates no cells (no 'create' line)")
+            raise ValueError(f"{self.name}: the listing creates no cells (no 'create' line)")
         return make_cells(
             self.species, self.position, concentration=self.concentration, diffusion=self.diffusion,
             polarity=self.angle, polarised=self.polarised, fixed=self.fixed,
-            upper=[c.limit for c in self.listing.chemicals],
-            anisotropic=tuple(c.anisotropic for c in self.listing.chemicals),
+            upper=[c.limit for c in self.chemicals],
+            anisotropic=tuple(c.anisotropic for c in self.chemicals),
         )
 
 

@@ -107,14 +107,11 @@ class _Reader:
             if name in self.chemicals or name in self.maps:
                 line.fail(f"{name} is already defined ({'a chemical' if name in self.chemicals else 'a map'})")
             limit, anisotropic = None, False
-            while line.peek() is not None:
-                option = line.take("an option")
-                if option == "limit" and limit is None:
+            for option in line.options(("limit", "anisotropic"), "define chemical takes 'limit L' and 'anisotropic'"):
+                if option == "limit":
                     limit = line.number("the limit", low=0.0)
-                elif option == "anisotropic" and not anisotropic:
-                    anisotropic = True
                 else:
-                    line.fail(f"unexpected '{option}' (define chemical takes 'limit L' and 'anisotropic', once each)")
+                    anisotropic = True
             self.chemicals[name] = Chemical(name, limit, anisotropic)
         elif what == "division_limit":
             self.single(line, "division_limit", line.integer("the division limit (neighbours)"), "define division_limit")
@@ -138,10 +135,7 @@ class _Reader:
         if what == "chemical":
             name = line.chemical()
             parts: dict = {}
-            while line.peek() is not None:
-                option = line.take("an option")
-                if option not in ("conc", "diff") or option in parts:
-                    line.fail(f"unexpected '{option}' (use chemical takes 'conc C [dev D]' and 'diff F [dev E]', once each)")
+            for option in line.options(("conc", "diff"), "use chemical takes 'conc C [dev D]' and 'diff F [dev E]'"):
                 parts[option] = line.value_and_dev(f"the {option}")
             if not parts:
                 line.fail(f"use chemical {name} sets nothing: give 'conc C' and/or 'diff F'")
@@ -184,12 +178,9 @@ class _Reader:
             size, file = (), line.quoted('the shape\'s file name ("file.txt")')
         options: dict = {}
         allowed = _CREATE_OPTIONS[kind]
-        while line.peek() is not None:
-            option = line.take("an option")
-            if option == "wrap":
+        for option in line.options((*allowed, "wrap"), f"create {kind} takes {', '.join(allowed)}"):
+            if option == "wrap":  # read as an option only to be refused with its own message
                 line.fail("'wrap' (toroidal wrapping of a square grid) is not supported yet")
-            if option not in allowed or option in options:
-                line.fail(f"unexpected '{option}' (create {kind} takes {', '.join(allowed)}, once each)")
             if option == "at":
                 options["at"] = (line.number("the x of 'at'"), line.number("the y of 'at'"))
             elif option == "dev":
@@ -212,10 +203,8 @@ class _Reader:
         else:
             line.fail(f"expected 'set cell I' or 'set cells I to J', found 'set {what}'")
         parts: dict = {}
-        while line.peek() is not None:
-            option = line.take("an option")
-            if option in parts or option not in ("chemical", "conc", "diff", "polarity", "fixed"):
-                line.fail(f"unexpected '{option}' (set takes chemical NAME, conc, diff, polarity and fixed, once each)")
+        for option in line.options(("chemical", "conc", "diff", "polarity", "fixed"),
+                                   "set takes chemical NAME, conc, diff, polarity and fixed"):
             if option == "chemical":
                 parts["chemical"] = line.chemical()
             elif option in ("conc", "diff"):
@@ -261,16 +250,14 @@ class _Reader:
                                  f"windows ({windows}); the rule runs on their intersection, {_window_words(start, stop)}")
         if start is not None and stop is not None and start > stop:
             self.warnings.append(f"line {line.lineno}: the window from {start} until {stop} is empty; this rule never fires")
-        try:
+        with line.checked():
             self.rules.append(Rule(action, tuple(c for _, c, _, _ in chain), start, stop))
-        except ValueError as err:
-            line.fail(str(err))
         if isinstance(action, Map):
             self.maps.add(action.name)
 
     def condition(self, line: _Line):
         word = line.take("a condition (always, if or probability)")
-        try:
+        with line.checked():  # a condition's own check (e.g. a probability outside [0, 1])
             if word == "always":
                 return Always()
             if word == "probability":
@@ -283,22 +270,14 @@ class _Reader:
                 if op not in ("==", "!=", "<", "<=", ">", ">="):
                     line.fail(f"expected a comparison (==, !=, <, <=, >, >= or in), found '{op}'")
                 return Compare(left, op, line.operand("the right operand"))
-        except ListingError:
-            raise
-        except ValueError as err:  # a rule's own check (e.g. a probability outside [0, 1])
-            line.fail(str(err))
         line.fail(f"expected a condition (always, if or probability), found '{word}'")
 
     def action(self, line: _Line):
         word = line.take("an action (change, react, divide, map or polarize) or 'and'")
         if word not in ACTIONS:
             line.fail(f"expected an action (change, react, divide, map or polarize) or 'and', found '{word}'")
-        try:
+        with line.checked():  # an action's own check
             return getattr(self, f"action_{word}")(line)
-        except ListingError:
-            raise
-        except ValueError as err:  # a rule's own check (e.g. a probability outside [0, 1])
-            line.fail(str(err))
 
     def action_change(self, line: _Line):
         name = line.chemical("the chemical to change")
@@ -362,10 +341,8 @@ class _Reader:
             how = line.take("'color' or 'rgb'")
             if how == "color":
                 colour = line.quoted('the colour (a CSS name or a hex triplet, e.g. "white" or "420009")')
-                try:
+                with line.checked():
                     _rgb(colour)
-                except ValueError as err:
-                    line.fail(str(err))
             elif how == "rgb":
                 colour = tuple(line.integer(f"the {c} byte") for c in ("red", "green", "blue"))
                 if max(colour) > 255:

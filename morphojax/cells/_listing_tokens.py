@@ -1,29 +1,42 @@
 """The line cursor of the experiment language's reader (thesis 4.8): a line split into
 tokens (`//` comments stripped, double-quoted strings kept whole), read left to right as
-words, numbers, integers, chemical names and rule operands, and `ListingError`, the error
-that names the listing, the line number and the line. `_listing_read` parses statements
-with it.
+words, numbers, integers, chemical names, rule operands and options, and `ListingError`,
+the error that names the listing, the line number and the line. `format_number` writes a
+number back as the shortest decimal that reads to the same value. `_listing_read` parses
+statements with the cursor and `_listing_write` writes numbers with `format_number`; this
+module imports neither (a line reads against any `Context`: the reader is one).
 """
 
 from __future__ import annotations
 
+import contextlib
 import re
-from typing import TYPE_CHECKING, NoReturn
+from collections.abc import Iterator, Mapping
+from typing import NoReturn, Protocol
 
-from ._listing_write import _format_number
+import numpy as np
+
 from ._rules import AGE, BIRTH, NEIGHBORS, conc, diff, mapped
 
 FLOAT_MAX = 3.4028234663852886e38  # the largest float32
 INT_MAX = 2**31 - 1  # the largest int32
-
-if TYPE_CHECKING:
-    from ._listing_read import _Reader
 
 NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 INTEGER = re.compile(r"[+-]?\d+")
 IDENTIFIER = re.compile(r"[A-Za-z_]\w*")
 TOKEN = re.compile(r'"[^"]*"|\S+')
 CELL_VARIABLES = {"AGE": AGE, "BIRTH": BIRTH, "NEIGHBORS": NEIGHBORS}
+
+
+def format_number(value) -> str:
+    """The shortest decimal that reads back to the same value in its own precision (a
+    float32 leaf of a rule reads back from "0.0004", not "0.0003999999898951501")."""
+    array = np.asarray(value)
+    scalar = (array if array.dtype.kind == "f" else array.astype(np.float64)).reshape(())[()]
+    magnitude = abs(float(scalar))
+    if magnitude != 0 and (magnitude < 1e-6 or magnitude >= 1e15):
+        return np.format_float_scientific(scalar, unique=True, trim="-")
+    return np.format_float_positional(scalar, unique=True, trim="-")
 
 
 class ListingError(ValueError):
@@ -33,6 +46,16 @@ class ListingError(ValueError):
     def at(cls, name: str, lines: list[str], number: int, message: str) -> "ListingError":
         got = lines[number - 1].strip() if 0 < number <= len(lines) else ""
         return cls(f"{name}:{number}: {message} (got '{got}')")
+
+
+class Context(Protocol):
+    """What a line is read against: the chemicals and maps defined so far, and the error for
+    one of its lines (`_listing_read._Reader` is one)."""
+
+    chemicals: Mapping[str, object]
+    maps: set[str]
+
+    def error(self, number: int, message: str) -> ListingError: ...
 
 
 def strip_comment(text: str) -> str:
@@ -49,7 +72,7 @@ def strip_comment(text: str) -> str:
 class _Line:
     """The tokens of one line, read left to right; every complaint names the line."""
 
-    def __init__(self, reader: "_Reader", number: int, text: str):
+    def __init__(self, reader: Context, number: int, text: str):
         self.reader, self.lineno, self.text = reader, number, text
         self.tokens = TOKEN.findall(strip_comment(text))
         self.i = 0
@@ -87,22 +110,47 @@ class _Line:
         if self.peek() is not None:
             self.fail(f"unexpected '{self.peek()}' {context}")
 
+    def options(self, allowed, takes: str) -> Iterator[str]:
+        """The options up to the end of the line, each one of `allowed` at most once; any other
+        fails with "unexpected 'X' (<takes>, once each)". The caller reads each one's values."""
+        seen = set()
+        while self.peek() is not None:
+            option = self.take("an option")
+            if option not in allowed or option in seen:
+                self.fail(f"unexpected '{option}' ({takes}, once each)")
+            seen.add(option)
+            yield option
+
+    @contextlib.contextmanager
+    def checked(self) -> Iterator[None]:
+        """A ValueError raised inside (a rule's own check, e.g. a probability outside [0, 1])
+        reported as this line's error; a `ListingError` passes as it is."""
+        try:
+            yield
+        except ListingError:
+            raise
+        except ValueError as err:
+            self.fail(str(err))
+
     # ---- values -------------------------------------------------------------------
-    def number(self, what: str, *, low: float | None = None, low_open: bool = False) -> float:
+    def matching(self, what: str, pattern: re.Pattern, kind: str) -> str:
+        """The next token, which must match `pattern` (a `kind`, as the error says)."""
         token = self.take(what)
-        if not NUMBER.fullmatch(token):
-            self.fail(f"{what} must be a number, found '{token}'")
+        if not pattern.fullmatch(token):
+            self.fail(f"{what} must be {kind}, found '{token}'")
+        return token
+
+    def number(self, what: str, *, low: float | None = None, low_open: bool = False) -> float:
+        token = self.matching(what, NUMBER, "a number")
         value = float(token)
         if not abs(value) <= FLOAT_MAX:  # the cells are float32: a larger number (or 1e400 = inf) cannot be held
             self.fail(f"{what} must be a finite number within +-{FLOAT_MAX:.4g}, found {token}")
         if low is not None and (value <= low if low_open else value < low):
-            self.fail(f"{what} must be {'>' if low_open else '>='} {_format_number(low)}, found {token}")
+            self.fail(f"{what} must be {'>' if low_open else '>='} {format_number(low)}, found {token}")
         return value
 
     def integer(self, what: str, *, low: int = 0) -> int:
-        token = self.take(what)
-        if not INTEGER.fullmatch(token):
-            self.fail(f"{what} must be an integer, found '{token}'")
+        token = self.matching(what, INTEGER, "an integer")
         value = int(token)
         if value < low:
             self.fail(f"{what} must be >= {low}, found {token}")

@@ -1,39 +1,24 @@
-"""Writing a listing back and comparing listings (thesis 4.8): `_write_listing` gives the
-canonical text of a `Listing` (one command per line, defaults left out, every rule written
-from its `Rule` data, numbers as the shortest decimals that read back to the same values),
-and `rule_key`, `same_rules` and `_listing_key` compare rules and listings by their
-structure and numbers (the basis of `Listing.__eq__`).
+"""Writing a listing's statements back and comparing rules (thesis 4.8): `format_command`
+and `format_rule` give the canonical text of a prepattern command and of a `Rule` (defaults
+left out, every rule written from its `Rule` data, numbers as the shortest decimals that
+read back to the same values), and `rule_key`, `same_rules` and `domain_key` compare rules
+and domains by their structure and numbers. `Listing.to_text` and `Listing.__eq__` (in
+`_listing`, which imports this module) are built from them.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
 
 from ..models import Bard
 from ._listing_commands import Create, SetCells, UseChemical, UsePolarity
+from ._listing_tokens import format_number
 from ._rules import Always, Chance, Change, Compare, Divide, Map, Polarize, React, Rule, Var, Within
-from ._space import Box, Packed
-
-if TYPE_CHECKING:
-    from ._listing import Listing
-
 
 # ---- writing -------------------------------------------------------------------------
-
-
-def _format_number(value) -> str:
-    """The shortest decimal that reads back to the same value in its own precision (a
-    float32 leaf of a rule reads back from "0.0004", not "0.0003999999898951501")."""
-    array = np.asarray(value)
-    scalar = (array if array.dtype.kind == "f" else array.astype(np.float64)).reshape(())[()]
-    magnitude = abs(float(scalar))
-    if magnitude != 0 and (magnitude < 1e-6 or magnitude >= 1e15):
-        return np.format_float_scientific(scalar, unique=True, trim="-")
-    return np.format_float_positional(scalar, unique=True, trim="-")
 
 
 def _format_degrees(radians) -> str:
@@ -49,7 +34,7 @@ def _format_degrees(radians) -> str:
 
 
 def _format_operand(value) -> str:
-    return str(value) if isinstance(value, Var) else _format_number(value)
+    return str(value) if isinstance(value, Var) else format_number(value)
 
 
 def _format_condition(condition) -> str:
@@ -67,7 +52,7 @@ def _format_condition(condition) -> str:
 
 def _format_action(action) -> str:
     if isinstance(action, Change):
-        dev = f" dev {_format_number(action.spread)}" if float(action.spread) != 0 else ""
+        dev = f" dev {format_number(action.spread)}" if float(action.spread) != 0 else ""
         return f"change {action.target} {_format_operand(action.amount)}{dev}"
     if isinstance(action, React):
         model = action.model
@@ -75,7 +60,7 @@ def _format_action(action) -> str:
             raise ValueError("the listing language writes only react ... turing (Bard with sp = 1); "
                              f"cannot write {type(model).__name__}")
         return (f"react {' '.join(action.species)} scale {_format_operand(action.scale)} turing "
-                f"alpha {_format_number(model.alpha)} beta {_format_number(model.beta)}")
+                f"alpha {format_number(model.alpha)} beta {format_number(model.beta)}")
     if isinstance(action, Divide):
         dev = f" dev {_format_degrees(action.spread)}" if float(action.spread) != 0 else ""
         return f"divide direction {_format_degrees(action.direction)}{dev}"
@@ -87,7 +72,7 @@ def _format_action(action) -> str:
     raise ValueError(f"the listing language cannot write the action {action!r}")
 
 
-def _format_rule(rule: Rule) -> list[str]:
+def format_rule(rule: Rule) -> list[str]:
     window = "".join(f" {word} {value}" for word, value in (("from", rule.start), ("until", rule.stop)) if value is not None)
     conditions = [_format_condition(c) for c in rule.when] or ["always"]
     lines = [f"rule{window} {c} and" for c in conditions[:-1]]
@@ -98,25 +83,25 @@ def _format_value_dev(word: str, given) -> str:
     if given is None:
         return ""
     value, dev = given
-    return f" {word} {_format_number(value)}" + (f" dev {_format_number(dev)}" if dev else "")
+    return f" {word} {format_number(value)}" + (f" dev {format_number(dev)}" if dev else "")
 
 
-def _format_command(command) -> str:
+def format_command(command) -> str:
     if isinstance(command, UseChemical):
         return (f"use chemical {command.chemical}{_format_value_dev('conc', command.conc)}"
                 f"{_format_value_dev('diff', command.diff)}")
     if isinstance(command, UsePolarity):
         if command.angle is None:
             return "use polarity none"
-        dev = f" dev {_format_number(command.dev)}" if command.dev else ""
-        return f"use polarity {_format_number(command.angle)}{dev}"
+        dev = f" dev {format_number(command.dev)}" if command.dev else ""
+        return f"use polarity {format_number(command.angle)}{dev}"
     if isinstance(command, Create):
         if command.kind == "shape":
             size = f' "{command.file}"'
         else:
-            size = "".join(f" {v}" if isinstance(v, int) else f" {_format_number(v)}" for v in command.size)
-        at = f" at {_format_number(command.at[0])} {_format_number(command.at[1])}" if tuple(command.at) != (0.0, 0.0) else ""
-        dev = f" dev {_format_number(command.dev)}" if command.dev else ""
+            size = "".join(f" {v}" if isinstance(v, int) else f" {format_number(v)}" for v in command.size)
+        at = f" at {format_number(command.at[0])} {format_number(command.at[1])}" if tuple(command.at) != (0.0, 0.0) else ""
+        dev = f" dev {format_number(command.dev)}" if command.dev else ""
         return f"create {command.kind}{size}{at}{dev}{' fixed' if command.fixed else ''}"
     if isinstance(command, SetCells):
         cells = f"cell {command.first}" if command.first == command.last else f"cells {command.first} to {command.last}"
@@ -128,45 +113,6 @@ def _format_command(command) -> str:
         return (f"set {cells}{chemical}{_format_value_dev('conc', command.conc)}{_format_value_dev('diff', command.diff)}"
                 f"{polarity}{' fixed' if command.fixed else ''}")
     raise ValueError(f"unknown prepattern command {command!r}")
-
-
-def _write_listing(listing: Listing) -> list[str]:
-    lines = []
-    for c in listing.chemicals:
-        limit = f" limit {_format_number(c.limit)}" if c.limit is not None else ""
-        lines.append(f"define chemical {c.name}{limit}{' anisotropic' if c.anisotropic else ''}")
-    if listing.division_limit is not None:
-        lines.append(f"define division_limit {listing.division_limit}")
-    if isinstance(listing.domain, Box):
-        lines.append(f"define domain {_format_number(listing.domain.width)} {_format_number(listing.domain.height)}")
-    elif isinstance(listing.domain, Packed):
-        default = np.asarray(listing.domain.area) == np.asarray(Packed().area)
-        lines.append("define domain packed" + ("" if default else f" area {_format_number(listing.domain.area)}"))
-    if listing.dt != 1.0:
-        lines.append(f"define time_step {_format_number(listing.dt)}")
-    if listing.seed is not None:
-        lines.append(f"use seed {listing.seed}")
-    lines += [_format_command(c) for c in listing.commands]
-    for rule in listing.rules:
-        lines += _format_rule(rule)
-    if listing.colormap_select is not None:
-        lines.append(f"colormap select {listing.colormap_select}")
-    for slot, colour in listing.colormap_slots:
-        use = f'color "{colour}"' if isinstance(colour, str) else "rgb " + " ".join(str(int(v)) for v in colour)
-        lines.append(f"colormap slot {slot} use {use}")
-    if listing.texture is not None:
-        lines.append(f"texture size {listing.texture[0]} {listing.texture[1]}")
-    if listing.zoom is not None:
-        lines.append(f"zoom level {_format_number(listing.zoom)}")
-    for snap in listing.snaps:
-        if snap.every is None:
-            text = "snap at " + " ".join(str(i) for i in snap.at)
-        else:
-            text = f"snap from {snap.at[0]} repeat {snap.every[0]} step {snap.every[1]}"
-        lines.append(text + (" then exit" if snap.exit else ""))
-    if listing.stop is not None:
-        lines.append(f"stop at {listing.stop}")
-    return lines
 
 
 # ---- comparing -----------------------------------------------------------------------
@@ -185,18 +131,11 @@ def same_rules(a, b) -> bool:
     return len(a) == len(b) and all(rule_key(x) == rule_key(y) for x, y in zip(a, b))
 
 
-def _domain_key(domain):
+def domain_key(domain):
+    """A comparable form of a `Box` or `Packed` domain (None for none): its type and numbers."""
     if domain is None:
         return None
     return type(domain).__name__, tuple(np.asarray(leaf, float).item() for leaf in jax.tree_util.tree_leaves(domain))
 
 
-def _listing_key(listing: Listing):
-    return (
-        listing.chemicals, listing.dt, listing.stop, _domain_key(listing.domain), listing.division_limit,
-        listing.seed, listing.commands, tuple(rule_key(r) for r in listing.rules), listing.colormap_select,
-        listing.colormap_slots, listing.texture, listing.zoom, listing.snaps,
-    )
-
-
-__all__ = ["rule_key", "same_rules"]
+__all__ = ["domain_key", "format_command", "format_rule", "rule_key", "same_rules"]
