@@ -1,6 +1,7 @@
 """The bases of every model: `AbstractModel` (a reaction, per-species diffusion rates and
 saturation limits) and `AbstractReaction` (the single models: parameters by field name,
-limits per species), with the per-species helpers they share.
+limits per species), with the per-species helpers they share and the two that every single
+model's `__init__` and `__check_init__` are made of (`set_parameters`, `check_parameters`).
 
 Every model is a final equinox Module whose numeric parameters are JAX array leaves, so
 `jax.jit`, `jax.vmap` and `jax.grad` see them as ordinary inputs. A parameter may be a
@@ -28,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .._checks import as_float_array, check_finite, is_concrete
+from .._checks import as_float_array, check_finite, check_range, is_concrete
 from ._steady import homogeneous_values
 
 LETTERS = "abcdefghijklmnopqrstuvwxyz"
@@ -82,6 +83,33 @@ def check_limits(model) -> None:
             )
 
 
+def set_parameters(model, lower, upper, **values) -> None:
+    """In a single model's `__init__`: each parameter field named in `values` set to its
+    value as a float array, and `lower`, `upper` to one limit per species. Errors name
+    `Class.name`, an aliased field by its public name (`Reinforcement.diffusion`)."""
+    who = type(model).__name__
+    public = {field: name for name, field in model.ALIASES.items()}
+    for field, value in values.items():
+        setattr(model, field, as_float_array(value, f"{who}.{public.get(field, field)}"))
+    model.lower = species_stack(lower, len(model.species), f"{who}.lower")
+    model.upper = species_stack(upper, len(model.species), f"{who}.upper")
+
+
+def check_parameters(model, *fields: str, low: float | None = None, low_open: bool = False, note: str = "",
+                     allow_inf: str | None = None) -> None:
+    """In a single model's `__check_init__`: each named parameter field, one after the other,
+    finite (infinities as `allow_inf` lets, see `check_finite`) and, with `low`, >= low (>
+    low with `low_open`). Errors name `Class.name` (an aliased field by its public name),
+    the range's followed by " (note)" where a note is given."""
+    who = type(model).__name__
+    public = {field: name for name, field in model.ALIASES.items()}
+    for field in fields:
+        name, value = f"{who}.{public.get(field, field)}", getattr(model, field)
+        check_finite(value, name, allow_inf=allow_inf)
+        if low is not None:
+            check_range(value, f"{name} ({note})" if note else name, low=low, low_open=low_open)
+
+
 class AbstractModel(eqx.Module):
     """Base of every model: a reaction, per-species diffusion rates and saturation limits."""
 
@@ -106,6 +134,14 @@ class AbstractModel(eqx.Module):
     @property
     def n_species(self) -> int:
         return len(self.species)
+
+    def _species_index(self, who: str):
+        """The index of a species named by its name (`u`) or its letter (`a` = first), else None."""
+        if who in self.species:
+            return self.species.index(who)
+        if len(who) == 1 and who in LETTERS[: self.n_species]:
+            return LETTERS.index(who)
+        return None
 
     # ---- the homogeneous steady state (linear stability, steady starts) ----------------
     def unclamped_state(self) -> tuple | None:
@@ -194,13 +230,6 @@ class AbstractReaction(AbstractModel):
                     limits[kind] = list(species_stack(limits[kind], self.n_species, kind))
                 limits[kind][idx] = value
         return type(self)(**fields, lower=_as_tuple(limits["lower"]), upper=_as_tuple(limits["upper"]))
-
-    def _species_index(self, who: str):
-        if who in self.species:
-            return self.species.index(who)
-        if len(who) == 1 and who in LETTERS[: self.n_species]:
-            return LETTERS.index(who)
-        return None
 
     @classmethod
     def _scalar_fields(cls) -> tuple[str, ...]:

@@ -15,17 +15,8 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from .._checks import as_float_array, check_finite, check_range
-from ._base import AbstractReaction, check_limits, species_stack
-
-
-def _check_fields(model, free=(), nonnegative=()) -> None:
-    """Every named field finite; those in `nonnegative` (rates, diffusion rates) >= 0."""
-    who = type(model).__name__
-    for name in free + nonnegative:
-        check_finite(getattr(model, name), f"{who}.{name}")
-    for name in nonnegative:
-        check_range(getattr(model, name), f"{who}.{name}", low=0.0)
+from .._checks import check_range
+from ._base import AbstractReaction, check_limits, check_parameters, set_parameters, species_stack
 
 
 class GrayScott(AbstractReaction):
@@ -44,15 +35,10 @@ class GrayScott(AbstractReaction):
     upper: Array
 
     def __init__(self, feed=0.0367, kill=0.0649, du=0.2097, dv=0.105, lower=0.0, upper=math.inf):
-        self.feed = as_float_array(feed, "GrayScott.feed")
-        self.kill = as_float_array(kill, "GrayScott.kill")
-        self.du = as_float_array(du, "GrayScott.du")
-        self.dv = as_float_array(dv, "GrayScott.dv")
-        self.lower = species_stack(lower, 2, "GrayScott.lower")
-        self.upper = species_stack(upper, 2, "GrayScott.upper")
+        set_parameters(self, lower, upper, feed=feed, kill=kill, du=du, dv=dv)
 
     def __check_init__(self):
-        _check_fields(self, nonnegative=("feed", "kill", "du", "dv"))
+        check_parameters(self, "feed", "kill", "du", "dv", low=0.0)
         check_limits(self)
 
     def reaction(self, x):
@@ -99,16 +85,11 @@ class FitzHughNagumo(AbstractReaction):
     upper: Array
 
     def __init__(self, a=-0.3, b=0.45, epsilon=0.35, du=0.1, dv=2.0, lower=-math.inf, upper=math.inf):
-        self.a = as_float_array(a, "FitzHughNagumo.a")
-        self.b = as_float_array(b, "FitzHughNagumo.b")
-        self.epsilon = as_float_array(epsilon, "FitzHughNagumo.epsilon")
-        self.du = as_float_array(du, "FitzHughNagumo.du")
-        self.dv = as_float_array(dv, "FitzHughNagumo.dv")
-        self.lower = species_stack(lower, 2, "FitzHughNagumo.lower")
-        self.upper = species_stack(upper, 2, "FitzHughNagumo.upper")
+        set_parameters(self, lower, upper, a=a, b=b, epsilon=epsilon, du=du, dv=dv)
 
     def __check_init__(self):
-        _check_fields(self, free=("a", "b"), nonnegative=("epsilon", "du", "dv"))
+        check_parameters(self, "a", "b")
+        check_parameters(self, "epsilon", "du", "dv", low=0.0)
         check_limits(self)
 
     def reaction(self, x):
@@ -157,16 +138,10 @@ class GiererMeinhardt(AbstractReaction):
     V_FLOOR: ClassVar[float] = 1e-3  # the default lower limit of v
 
     def __init__(self, rho=1.0, mu=1.0, nu=2.0, du=0.5, dv=10.0, lower=(0.0, V_FLOOR), upper=math.inf):
-        self.rho = as_float_array(rho, "GiererMeinhardt.rho")
-        self.mu = as_float_array(mu, "GiererMeinhardt.mu")
-        self.nu = as_float_array(nu, "GiererMeinhardt.nu")
-        self.du = as_float_array(du, "GiererMeinhardt.du")
-        self.dv = as_float_array(dv, "GiererMeinhardt.dv")
-        self.lower = species_stack(lower, 2, "GiererMeinhardt.lower")
-        self.upper = species_stack(upper, 2, "GiererMeinhardt.upper")
+        set_parameters(self, lower, upper, rho=rho, mu=mu, nu=nu, du=du, dv=dv)
 
     def __check_init__(self):
-        _check_fields(self, nonnegative=("rho", "mu", "nu", "du", "dv"))
+        check_parameters(self, "rho", "mu", "nu", "du", "dv", low=0.0)
         check_limits(self)
         check_range(self.lower[1], "GiererMeinhardt.lower of v (the reaction divides by v)", low=0.0, low_open=True)
 
@@ -206,15 +181,10 @@ class Schnakenberg(AbstractReaction):
     upper: Array
 
     def __init__(self, a=0.1, b=0.9, du=0.5, dv=10.0, lower=0.0, upper=math.inf):
-        self.a = as_float_array(a, "Schnakenberg.a")
-        self.b = as_float_array(b, "Schnakenberg.b")
-        self.du = as_float_array(du, "Schnakenberg.du")
-        self.dv = as_float_array(dv, "Schnakenberg.dv")
-        self.lower = species_stack(lower, 2, "Schnakenberg.lower")
-        self.upper = species_stack(upper, 2, "Schnakenberg.upper")
+        set_parameters(self, lower, upper, a=a, b=b, du=du, dv=dv)
 
     def __check_init__(self):
-        _check_fields(self, nonnegative=("a", "b", "du", "dv"))
+        check_parameters(self, "a", "b", "du", "dv", low=0.0)
         check_limits(self)
 
     def reaction(self, x):
@@ -253,15 +223,10 @@ class Brusselator(AbstractReaction):
     upper: Array
 
     def __init__(self, a=1.5, b=3.0, du=1.0, dv=10.0, lower=0.0, upper=math.inf):
-        self.a = as_float_array(a, "Brusselator.a")
-        self.b = as_float_array(b, "Brusselator.b")
-        self.du = as_float_array(du, "Brusselator.du")
-        self.dv = as_float_array(dv, "Brusselator.dv")
-        self.lower = species_stack(lower, 2, "Brusselator.lower")
-        self.upper = species_stack(upper, 2, "Brusselator.upper")
+        set_parameters(self, lower, upper, a=a, b=b, du=du, dv=dv)
 
     def __check_init__(self):
-        _check_fields(self, nonnegative=("a", "b", "du", "dv"))
+        check_parameters(self, "a", "b", "du", "dv", low=0.0)
         check_limits(self)
 
     def reaction(self, x):
@@ -311,20 +276,11 @@ class Thomas(AbstractReaction):
     BISECTIONS: ClassVar[int] = 60  # halvings of the bracket of u: below float64's resolution
 
     def __init__(self, a=150.0, b=100.0, alpha=1.5, rho=13.0, K=0.05, du=0.5, dv=20.0, lower=0.0, upper=math.inf):
-        self.a = as_float_array(a, "Thomas.a")
-        self.b = as_float_array(b, "Thomas.b")
-        self.alpha = as_float_array(alpha, "Thomas.alpha")
-        self.rho = as_float_array(rho, "Thomas.rho")
-        self.K = as_float_array(K, "Thomas.K")
-        self.du = as_float_array(du, "Thomas.du")
-        self.dv = as_float_array(dv, "Thomas.dv")
-        self.lower = species_stack(lower, 2, "Thomas.lower")
-        self.upper = species_stack(upper, 2, "Thomas.upper")
+        set_parameters(self, lower, upper, a=a, b=b, alpha=alpha, rho=rho, K=K, du=du, dv=dv)
 
     def __check_init__(self):
-        _check_fields(self, nonnegative=("a", "b", "rho", "K", "du", "dv"))
-        check_finite(self.alpha, "Thomas.alpha")
-        check_range(self.alpha, "Thomas.alpha (v's supply and decay rate)", low=0.0, low_open=True)
+        check_parameters(self, "a", "b", "rho", "K", "du", "dv", low=0.0)
+        check_parameters(self, "alpha", low=0.0, low_open=True, note="v's supply and decay rate")
         check_limits(self)
 
     def reaction(self, x):

@@ -178,10 +178,3 @@ class Reaction(AbstractModel):
                 per[kind][idx] = value
         return Reaction(self.fn, params, tuple(per["diffusion"]), species=self.species,
                         lower=tuple(per["lower"]), upper=tuple(per["upper"]))
-
-    def _species_index(self, who: str):
-        if who in self.species:
-            return self.species.index(who)
-        if len(who) == 1 and who in LETTERS[: len(self.species)]:
-            return LETTERS.index(who)
-        return None

@@ -10,8 +10,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from .._checks import as_float_array, check_finite, check_range
-from ._base import AbstractReaction, check_limits, species_stack
+from ._base import AbstractReaction, check_limits, check_parameters, set_parameters, species_stack
 
 
 class Morphogen(AbstractReaction):
@@ -39,21 +38,13 @@ class Morphogen(AbstractReaction):
 
     def __init__(self, production=0.0, removal=0.0, decay=0.0, diffusion=0.1, lower=0.0, upper=math.inf, *,
                  diffusion_rate=None):
-        if diffusion_rate is not None:  # the field's own name, used by `replace`
-            diffusion = diffusion_rate
-        self.production = as_float_array(production, "Morphogen.production")
-        self.removal = as_float_array(removal, "Morphogen.removal")
-        self.decay = as_float_array(decay, "Morphogen.decay")
-        self.diffusion_rate = as_float_array(diffusion, "Morphogen.diffusion")
-        self.lower = species_stack(lower, 1, "Morphogen.lower")
-        self.upper = species_stack(upper, 1, "Morphogen.upper")
+        # diffusion_rate: the field's own name, which `replace` gives
+        set_parameters(self, lower, upper, production=production, removal=removal, decay=decay,
+                       diffusion_rate=diffusion if diffusion_rate is None else diffusion_rate)
 
     def __check_init__(self):
-        for name in ("production", "removal", "decay"):
-            check_finite(getattr(self, name), f"Morphogen.{name}")
-            check_range(getattr(self, name), f"Morphogen.{name} (per unit time)", low=0.0)
-        check_finite(self.diffusion_rate, "Morphogen.diffusion")
-        check_range(self.diffusion_rate, "Morphogen.diffusion (a diffusion rate)", low=0.0)
+        check_parameters(self, "production", "removal", "decay", low=0.0, note="per unit time")
+        check_parameters(self, "diffusion_rate", low=0.0, note="a diffusion rate")
         check_limits(self)
 
     def reaction(self, x):

@@ -8,8 +8,7 @@ from typing import ClassVar
 
 from jax import Array
 
-from .._checks import as_float_array, check_finite, check_range
-from ._base import AbstractReaction, check_limits, species_stack
+from ._base import AbstractReaction, check_limits, check_parameters, set_parameters, species_stack
 
 
 class Reinforcement(AbstractReaction):
@@ -31,20 +30,14 @@ class Reinforcement(AbstractReaction):
     upper: Array
 
     def __init__(self, threshold=5.0, width=5.0, diffusion=1.0, lower=0.0, upper=math.inf, *, diffusion_rate=None):
-        if diffusion_rate is not None:  # the field's own name, used by `replace`
-            diffusion = diffusion_rate
-        self.threshold = as_float_array(threshold, "Reinforcement.threshold")
-        self.width = as_float_array(width, "Reinforcement.width")
-        self.diffusion_rate = as_float_array(diffusion, "Reinforcement.diffusion")
-        self.lower = species_stack(lower, 1, "Reinforcement.lower")
-        self.upper = species_stack(upper, 1, "Reinforcement.upper")
+        # diffusion_rate: the field's own name, which `replace` gives
+        set_parameters(self, lower, upper, threshold=threshold, width=width,
+                       diffusion_rate=diffusion if diffusion_rate is None else diffusion_rate)
 
     def __check_init__(self):
-        check_finite(self.threshold, "Reinforcement.threshold")
-        check_finite(self.width, "Reinforcement.width")
-        check_range(self.width, "Reinforcement.width", low=0.0, low_open=True)
-        check_finite(self.diffusion_rate, "Reinforcement.diffusion")
-        check_range(self.diffusion_rate, "Reinforcement.diffusion (a diffusion rate)", low=0.0)
+        check_parameters(self, "threshold")
+        check_parameters(self, "width", low=0.0, low_open=True)
+        check_parameters(self, "diffusion_rate", low=0.0, note="a diffusion rate")
         check_limits(self)
 
     @property

@@ -17,8 +17,7 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from .._checks import as_float_array, check_finite, check_range
-from ._base import AbstractReaction, check_limits, species_stack
+from ._base import AbstractReaction, check_limits, check_parameters, set_parameters, species_stack
 
 
 class ThesisReinforcement(AbstractReaction):
@@ -49,23 +48,13 @@ class ThesisReinforcement(AbstractReaction):
     upper: Array
 
     def __init__(self, s=0.35, a=0.3, b=0.5, c=0.7, diffusion=0.01, lower=0.0, upper=1.0, *, diffusion_rate=None):
-        if diffusion_rate is not None:  # the field's own name, used by `replace`
-            diffusion = diffusion_rate
-        name = type(self).__name__
-        self.s = as_float_array(s, f"{name}.s")
-        self.a = as_float_array(a, f"{name}.a")
-        self.b = as_float_array(b, f"{name}.b")
-        self.c = as_float_array(c, f"{name}.c")
-        self.diffusion_rate = as_float_array(diffusion, f"{name}.diffusion")
-        self.lower = species_stack(lower, 1, f"{name}.lower")
-        self.upper = species_stack(upper, 1, f"{name}.upper")
+        # diffusion_rate: the field's own name, which `replace` gives
+        set_parameters(self, lower, upper, s=s, a=a, b=b, c=c,
+                       diffusion_rate=diffusion if diffusion_rate is None else diffusion_rate)
 
     def __check_init__(self):
-        name = type(self).__name__
-        for field in ("s", "a", "b", "c"):
-            check_finite(getattr(self, field), f"{name}.{field}")
-        check_finite(self.diffusion_rate, f"{name}.diffusion")
-        check_range(self.diffusion_rate, f"{name}.diffusion (a diffusion rate)", low=0.0)
+        check_parameters(self, "s", "a", "b", "c")
+        check_parameters(self, "diffusion_rate", low=0.0, note="a diffusion rate")
         check_limits(self)
 
     def reaction(self, x):
@@ -130,31 +119,18 @@ class RuleReinforcement(AbstractReaction):
 
     def __init__(self, rise_above=0.7, gain=0.01, fall_below=0.3, loss=0.01, diffusion=0.01, lower=0.0, upper=1.0, *,
                  rise_below=math.inf, fall_above=-math.inf, width=0.0, diffusion_rate=None):
-        if diffusion_rate is not None:  # the field's own name, used by `replace`
-            diffusion = diffusion_rate
-        name = type(self).__name__
-        self.rise_above = as_float_array(rise_above, f"{name}.rise_above")
-        self.rise_below = as_float_array(rise_below, f"{name}.rise_below")
-        self.gain = as_float_array(gain, f"{name}.gain")
-        self.fall_above = as_float_array(fall_above, f"{name}.fall_above")
-        self.fall_below = as_float_array(fall_below, f"{name}.fall_below")
-        self.loss = as_float_array(loss, f"{name}.loss")
-        self.width = as_float_array(width, f"{name}.width")
-        self.diffusion_rate = as_float_array(diffusion, f"{name}.diffusion")
-        self.lower = species_stack(lower, 1, f"{name}.lower")
-        self.upper = species_stack(upper, 1, f"{name}.upper")
+        # diffusion_rate: the field's own name, which `replace` gives
+        set_parameters(self, lower, upper, rise_above=rise_above, rise_below=rise_below, gain=gain,
+                       fall_above=fall_above, fall_below=fall_below, loss=loss, width=width,
+                       diffusion_rate=diffusion if diffusion_rate is None else diffusion_rate)
 
     def __check_init__(self):
-        name = type(self).__name__
-        check_finite(self.rise_above, f"{name}.rise_above", allow_inf="-")
-        check_finite(self.rise_below, f"{name}.rise_below", allow_inf="+")
-        check_finite(self.fall_above, f"{name}.fall_above", allow_inf="-")
-        check_finite(self.fall_below, f"{name}.fall_below", allow_inf="+")
-        for field in ("gain", "loss", "width"):
-            check_finite(getattr(self, field), f"{name}.{field}")
-            check_range(getattr(self, field), f"{name}.{field}", low=0.0)
-        check_finite(self.diffusion_rate, f"{name}.diffusion")
-        check_range(self.diffusion_rate, f"{name}.diffusion (a diffusion rate)", low=0.0)
+        check_parameters(self, "rise_above", allow_inf="-")
+        check_parameters(self, "rise_below", allow_inf="+")
+        check_parameters(self, "fall_above", allow_inf="-")
+        check_parameters(self, "fall_below", allow_inf="+")
+        check_parameters(self, "gain", "loss", "width", low=0.0)
+        check_parameters(self, "diffusion_rate", low=0.0, note="a diffusion rate")
         check_limits(self)
 
     def unclamped_state(self):

@@ -9,8 +9,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from .._checks import as_float_array, check_finite, check_range
-from ._base import AbstractReaction, check_limits, species_stack
+from ._base import AbstractReaction, check_limits, check_parameters, set_parameters, species_stack
 
 
 def bard_reaction(x: Array, alpha, beta, sp) -> Array:
@@ -40,20 +39,11 @@ class Bard(AbstractReaction):
     upper: Array
 
     def __init__(self, alpha=16.0, beta=12.0, sp=1.0, da=0.04, db=0.01, lower=0.0, upper=math.inf):
-        self.alpha = as_float_array(alpha, "Bard.alpha")
-        self.beta = as_float_array(beta, "Bard.beta")
-        self.sp = as_float_array(sp, "Bard.sp")
-        self.da = as_float_array(da, "Bard.da")
-        self.db = as_float_array(db, "Bard.db")
-        self.lower = species_stack(lower, 2, "Bard.lower")
-        self.upper = species_stack(upper, 2, "Bard.upper")
+        set_parameters(self, lower, upper, alpha=alpha, beta=beta, sp=sp, da=da, db=db)
 
     def __check_init__(self):
-        for name in ("alpha", "beta", "sp"):
-            check_finite(getattr(self, name), f"Bard.{name}")
-        for name in ("da", "db"):
-            check_finite(getattr(self, name), f"Bard.{name}")
-            check_range(getattr(self, name), f"Bard.{name} (a diffusion rate)", low=0.0)
+        check_parameters(self, "alpha", "beta", "sp")
+        check_parameters(self, "da", "db", low=0.0, note="a diffusion rate")
         check_limits(self)
 
     def reaction(self, x):
@@ -90,16 +80,11 @@ class Turing(AbstractReaction):
     BETA: ClassVar[float] = 12.0
 
     def __init__(self, ratio=4.0, scale=3.0, lower=0.0, upper=math.inf):
-        self.ratio = as_float_array(ratio, "Turing.ratio")
-        self.scale = as_float_array(scale, "Turing.scale")
-        self.lower = species_stack(lower, 2, "Turing.lower")
-        self.upper = species_stack(upper, 2, "Turing.upper")
+        set_parameters(self, lower, upper, ratio=ratio, scale=scale)
 
     def __check_init__(self):
-        check_finite(self.ratio, "Turing.ratio")
-        check_finite(self.scale, "Turing.scale")
-        check_range(self.ratio, "Turing.ratio (Da/Db, a diffusion ratio)", low=0.0)
-        check_range(self.scale, "Turing.scale (Db, a diffusion rate)", low=0.0)
+        check_parameters(self, "ratio", low=0.0, note="Da/Db, a diffusion ratio")
+        check_parameters(self, "scale", low=0.0, note="Db, a diffusion rate")
         check_limits(self)
 
     def as_bard(self) -> Bard:
