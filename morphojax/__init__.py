@@ -42,6 +42,7 @@ from ._growing_mesh import MeshGrowth
 from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz
 from ._files import to_jsonable
+from ._frames_files import load_frames, save_frames
 from ._render import Gradient, experiment_picture, map_image, montage, render, render_experiment, save_png, to_image
 from ._animation import save_animation
 from ._palette import kmeans, photo_palette
@@ -141,6 +142,7 @@ __all__ = [
     "leopard_row_weights",
     "load_experiment",
     "kmeans",
+    "load_frames",
     "load_npz",
     "load_sweep",
     "map_image",
@@ -181,6 +183,7 @@ __all__ = [
     "run_status",
     "RunStatus",
     "save_animation",
+    "save_frames",
     "save_npz",
     "save_png",
     "Schnakenberg",

@@ -162,6 +162,10 @@ BOMB_RATIO = 200  # ... that expands more than this from its compressed size is 
 READ_ERRORS = (KeyError, OSError, ValueError, EOFError, TypeError, IndexError, AttributeError, OverflowError,
                MemoryError, UnicodeError, SyntaxError, json.JSONDecodeError, zipfile.BadZipFile, zlib.error,
                struct.error, tokenize.TokenError)  # a garbled .npy header fails NumPy's literal parser
+# ... and what zipfile alone raises on opening a member whose flag bits were flipped: RuntimeError
+# ("encrypted, password required") or its NotImplementedError ("strong encryption", "compressed
+# patched data"); `npz_members` opens every member first, so nothing later meets them
+ARCHIVE_ERRORS = READ_ERRORS + (RuntimeError,)
 
 
 def check_regular_file(path, what: str) -> Path:
@@ -211,7 +215,7 @@ def npz_members(path, what: str = "npz") -> dict:
                                      "bomb?)")
                 members[name] = (tuple(shape), dtype)
                 total += nbytes
-    except READ_ERRORS as err:
+    except ARCHIVE_ERRORS as err:
         raise ValueError(f"{path} is not a morphojax {what} file ({_why(err)})") from None
     check_memory(total, f"reading {path}")
     return members

@@ -105,6 +105,7 @@ def photo_stops(source, crop=None, k: int = 3, pigment: str = "dark", seed: int 
     positions = np.array([p for p, _ in stops])
     span = positions.max() - positions.min()
     if len(stops) < 2 or span <= 0:
-        raise ValueError("Gradient.from_photo: the photo has fewer than two distinct colours")
+        named = f" {source}" if isinstance(source, (str, Path)) else ""
+        raise ValueError(f"Gradient.from_photo: the photo{named} has fewer than two distinct colours")
     # stretched to [0, 1]: the lowest value of a field takes the lightest (pigment "dark")
     return [((p - positions.min()) / span, c) for p, c in stops]

@@ -225,7 +225,81 @@ def main(n: int = 40) -> dict:
         code, traceback = cli(["resume", str(ROOT / f"t_{field}.npz")])
         table["CLI resume of tampered checkpoints (phase 99, ...)"][
             f"exit {code}{' with traceback' if traceback else ''}"] += 1
+    later_classes(table, n)
     return table
+
+
+FRAMES_TAMPER = [("format", "morphojax-cells/1"), ("count", 5), ("count", -1), ("frame_axis", 2), ("shape", [4, 6, 6]),
+                 ("dtype", "float32"), ("states", 2), ("runs", [1, 2]), ("steps", [0, 5, 5, 15]),
+                 ("steps", [0, 5, 10]), ("steps", [-3, 5, 10, 15]), ("steps", [0, 5, 10, 2**40])]
+
+
+def frames_file(path: Path, field=None, value=None) -> Path:
+    """Four 6x5 snapshots of states 0..2 (`mj.save_frames`), with one metadata field or the
+    steps array changed by hand."""
+    path = mj.save_frames(path, (np.arange(120).reshape(4, 6, 5) % 3).astype(np.int8), [0, 5, 10, 15], states=3)
+    if field is not None:
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        meta = json.loads(str(arrays["metadata"]))
+        if field == "steps":
+            arrays["steps"] = np.asarray(value)
+        else:
+            meta[field] = value
+        arrays["metadata"] = np.asarray(json.dumps(meta))
+        np.savez_compressed(path, **arrays)
+    return path
+
+
+SWEEP_SIZES = [  # the Python API's sweeps and maps beyond the limit or the counters (run after the fixes only)
+    dict(vary={"ratio": np.linspace(4, 40, 10**6)}, shape=(50, 50)),
+    dict(vary={"ratio": np.arange(2.0**16), "upper_a": np.arange(2.0**16)}, shape=(4, 4)),
+    dict(vary=[{"ratio": 4.0}] * 10**5, shape=(500, 500)), dict(vary={"ratio": [4.0, 5.0]}, shape=(50000, 50000)),
+    dict(vary={"ratio": [4.0, 5.0]}, shape=(8, 8), capacity=(10**5, 10**5)),
+    dict(vary={"ratio": [4.0, 5.0]}, shape=(16.5, 16)), dict(vary={"ratio": [4.0, 5.0]}, shape=(8, 8), steps=2**31 + 5),
+]
+
+
+def later_classes(table, n: int) -> None:
+    """The classes added after the first table: frames files, 16-bit PNGs, the Python sweep."""
+    from test_hostile import _png16  # the 16-bit PNG writer of the tests (Pillow writes 16-bit grey only)
+
+    import fitting
+
+    if hasattr(mj, "load_frames"):
+        good = frames_file(ROOT / "frames.npz").read_bytes()
+        for k in range(n):
+            p = ROOT / f"frames{k}.npz"
+            p.write_bytes(damaged(good))
+            table["damaged frames `.npz` (`mj.load_frames`)"][outcome(lambda: mj.load_frames(p), p.name)] += 1
+        for field, value in FRAMES_TAMPER:
+            p = frames_file(ROOT / f"ft_{field}.npz", field, value)
+            table["frames metadata or steps tampered (12)"][outcome(lambda: mj.load_frames(p), p.name)] += 1
+    for k in range(n):  # contrast below 8 bits: the high bytes of both stripes are equal
+        bands = k % 4 + 1
+        base = RNG.randrange(0, 65535 - 512) & ~0xFF
+        low, high = base + RNG.randrange(0, 64), base + RNG.randrange(128, 256)
+        stripes = np.tile(np.where(np.arange(48) % 12 < 6, low, high).astype(np.uint16), (48, 1))
+        samples = np.stack([stripes] * bands, axis=-1)
+        if bands in (2, 4):
+            samples[..., -1] = 65535
+        p = _png16(ROOT / f"deep{k}.png", samples[..., 0] if bands == 1 else samples, interlace=bool(k % 3 == 0))
+        table["16-bit PNG (grey, grey+alpha, RGB, RGBA) with contrast below 8 bits (`fitting.load_target`)"][
+            outcome(lambda: fitting.load_target(p, cell_pixels=2.0), p.name)] += 1
+        q = ROOT / f"deepcut{k}.png"
+        q.write_bytes(damaged(p.read_bytes()))
+        table["damaged 16-bit PNG (`fitting.load_target`, `Gradient.from_photo`)"][
+            outcome(lambda: fitting.load_target(q, cell_pixels=2.0), q.name)] += 1
+        table["damaged 16-bit PNG (`fitting.load_target`, `Gradient.from_photo`)"][
+            outcome(lambda: mj.Gradient.from_photo(q), q.name)] += 1
+    for kwargs in [] if BEFORE else SWEEP_SIZES:  # before: a grid of 2^32 members, a 10^5-member run
+        kw = dict(key=0, dt=0.01, steps=10) | kwargs
+        table["Python `mj.sweep` sizes (10^6 members, a 2^32-member grid, 10^5 sets, huge shapes, 16.5, steps)"][
+            outcome(lambda: mj.sweep(mj.Turing(), **kw), "sweep")] += 1
+    if not BEFORE:
+        for shape in ((10**6, 10**6), (16.5, 16)):
+            table["Python `mj.sweep` sizes (10^6 members, a 2^32-member grid, 10^5 sets, huge shapes, 16.5, steps)"][
+                outcome(lambda: mj.parameter_map(mj.Turing(), shape, x=("ratio", 4.0, 40.0)), "parameter_map")] += 1
 
 
 if __name__ == "__main__":

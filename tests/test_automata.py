@@ -483,6 +483,7 @@ def test_images_and_meshes(tmp_path):
 
 
 def test_presets_quick_and_deterministic(tmp_path):
+    from morphojax import load_frames
     from morphojax.presets import AUTOMATON_PRESETS as PRESETS
 
     assert len(PRESETS) >= 6
@@ -491,6 +492,8 @@ def test_presets_quick_and_deterministic(tmp_path):
     a = PRESETS["young-b1"].run(seed=3, quick=True, out=tmp_path / "a.png", frames=True)
     b = PRESETS["young-b1"].run(seed=3, quick=True, out=tmp_path / "b.png", frames=False)
     assert a["steps"] == b["steps"] == 20 and (tmp_path / "a_frames.png").exists()
+    frames, steps, frames_meta = load_frames(tmp_path / "a_frames.npz")  # checked metadata, version recorded
+    assert len(frames) == len(steps) and steps[0] == 0 and frames_meta["states"] == 2
     assert a["volume_fractions"] == b["volume_fractions"]
     with np.load(tmp_path / "a.npz") as fa, np.load(tmp_path / "b.npz") as fb:
         final, meta = fa["cells"], json.loads(str(fa["metadata"]))

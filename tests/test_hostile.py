@@ -199,6 +199,21 @@ def test_damaged_results_raise_one_value_error(tmp_path_factory, data):
         assert state.names == ("a", "b")
 
 
+@pytest.mark.parametrize("flag", [0x01, 0x08 | 0x01, 0x20, 0x40])
+def test_archives_with_flipped_flag_bits_are_refused_by_name(tmp_path, flag):
+    """A flipped flag bit in an archive's directory makes zipfile raise RuntimeError ("encrypted,
+    password required") or NotImplementedError ("strong encryption", "compressed patched
+    data"): one ValueError naming the file, from every npz loader."""
+    for name, write, load in (("result.npz", lambda p: _result_file(p, experiment=False), load_npz),
+                              ("frames.npz", _frames_file, mj.load_frames)):
+        raw = bytearray(write(tmp_path / name).read_bytes())
+        at = raw.index(b"PK\x01\x02") + 8  # the first member's flags in the central directory
+        raw[at] |= flag
+        (tmp_path / name).write_bytes(bytes(raw))
+        with pytest.raises(ValueError, match=rf"{name.replace('.', '[.]')} is not a morphojax"):
+            load(tmp_path / name)
+
+
 @pytest.mark.parametrize("loader", ["result", "sweep", "cells"])
 def test_loaders_refuse_devices_folders_and_missing_files(tmp_path, loader):
     load = {"result": mj.load_npz, "sweep": mj.load_sweep, "cells": mj.load_cells}[loader]
@@ -531,6 +546,101 @@ def test_sweep_files_round_trip_and_tampered_fields_are_refused(tmp_path):
         bad = _sweep_file(tmp_path / "bad.npz", changes, arrays)
         with pytest.raises(ValueError, match=rf"bad\.npz .*{match}"):
             mj.load_sweep(bad)
+
+
+def _frames_file(path: Path, meta_changes=None, arrays_changes=None, **kwargs) -> Path:
+    """A frames file of four 6x5 snapshots of states 0..2, written by `save_frames`, then its
+    JSON and arrays changed by hand (as a damaged or hostile file would be)."""
+    frames = (np.arange(4 * 6 * 5).reshape(4, 6, 5) % 3).astype(np.int8)
+    path = mj.save_frames(path, frames, np.asarray([0, 5, 10, 15]), states=3, **kwargs)
+    if meta_changes or arrays_changes:
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        meta = json.loads(str(arrays["metadata"]))
+        meta |= meta_changes or {}
+        arrays |= (arrays_changes or {}) | {"metadata": np.asarray(json.dumps(meta))}
+        np.savez_compressed(path, **arrays)
+    return path
+
+
+def test_frames_files_record_version_and_round_trip(tmp_path):
+    from morphojax.presets._automaton_outputs import frames_outputs
+
+    frames, steps, meta = mj.load_frames(_frames_file(tmp_path / "f.npz", metadata={"seed": 7}))
+    assert frames.shape == (4, 6, 5) and frames.dtype == np.int8 and steps.tolist() == [0, 5, 10, 15]
+    assert meta["morphojax"] == mj.__version__ and meta["format_version"] == FORMAT_VERSION
+    assert meta["format"] == "morphojax-frames/1" and meta["states"] == 3 and meta["seed"] == 7
+    stacked = mj.save_frames(tmp_path / "runs.npz", np.zeros((2, 3, 4, 4), np.int8), [0, 1, 2], frame_axis=1,
+                             runs=[{"w2": -0.2}, {"w2": -0.4}])
+    assert mj.load_frames(stacked)[2]["runs"] == [{"w2": -0.2}, {"w2": -0.4}]
+    # the automata's --frames files are written through it (unfilled snapshots, step -1, left out)
+    written = frames_outputs(tmp_path / "ca.png", np.ones((3, 8, 8), np.int8), np.asarray([0, 4, -1]), 2, 1)
+    frames, steps, meta = mj.load_frames(written[0])
+    assert frames.shape == (2, 8, 8) and steps.tolist() == [0, 4] and meta["states"] == 3
+    assert meta["morphojax"] == mj.__version__ and meta["format_version"] == FORMAT_VERSION
+
+
+@pytest.mark.parametrize("meta_changes, arrays_changes, field", [
+    ({"format": "morphojax-cells/1"}, None, "'format'"), ({"count": 5}, None, "'count'"),
+    ({"count": -1}, None, "'count'"), ({"count": "4"}, None, "'count'"), ({"frame_axis": 2}, None, "'frame_axis'"),
+    ({"frame_axis": True}, None, "'frame_axis'"), ({"shape": [4, 6, 6]}, None, "'shape'"),
+    ({"dtype": "float32"}, None, "'dtype'"), ({"states": 2}, None, "'states'"), ({"states": 0}, None, "'states'"),
+    ({"runs": [1, 2, 3, 4]}, None, "'runs'"), (None, {"steps": np.asarray([0, 5, 5, 15])}, "'steps' must increase"),
+    (None, {"steps": np.asarray([0, 5, 10])}, "'steps' must hold 4 integers"),
+    (None, {"steps": np.asarray([-3, 5, 10, 15])}, "'steps' must lie in"),
+    (None, {"steps": np.asarray([0, 5, 10, 2**40])}, "'steps' must lie in"),
+    (None, {"steps": np.asarray([0.0, 5, 10, 15])}, "'steps' must hold 4 integers"),
+    (None, {"frames": np.zeros((3, 6, 5), np.int8)}, "'shape'"),
+    (None, {"frames": np.full((4, 6, 5), "a")}, "'frames' holds <U1, not numbers"),
+])
+def test_tampered_frames_fields_are_refused_by_name(tmp_path, meta_changes, arrays_changes, field):
+    path = _frames_file(tmp_path / "t.npz", meta_changes, arrays_changes)
+    with pytest.raises(ValueError, match=rf"t\.npz is not a valid morphojax frames file \(.*{field}"):
+        mj.load_frames(path)
+
+
+@FEW
+@given(field=st.sampled_from(["format", "count", "frame_axis", "shape", "dtype", "states", "runs"]),
+       value=st.one_of(st.none(), st.booleans(), st.integers(-2**40, 2**40), st.text(max_size=12),
+                       st.lists(st.integers(-3, 10), max_size=4), st.floats(allow_nan=False)))
+def test_any_other_frames_metadata_value_is_refused_or_consistent(tmp_path_factory, field, value):
+    """Every metadata field of a frames file is checked against the others and the arrays: any
+    other value is refused naming the file (and a field or array), or is one the arrays agree
+    with (only `states` has such values: any whole number above the largest cell value)."""
+    good = {"format": "morphojax-frames/1", "count": 4, "frame_axis": 0, "shape": [4, 6, 5], "dtype": "int8",
+            "states": 3}
+    if field in good and value == good[field] and type(value) is type(good[field]):
+        return
+    path = _frames_file(tmp_path_factory.mktemp("frames") / "h.npz", {field: value})
+    consistent = field == "states" and isinstance(value, int) and not isinstance(value, bool) and value >= 3
+    try:
+        mj.load_frames(path)
+    except ValueError as err:
+        assert not consistent and "h.npz is not a valid morphojax frames file" in str(err)
+        assert "metadata field" in str(err) or "its array" in str(err)
+    else:
+        assert consistent, (field, value)
+
+
+def test_frames_files_from_newer_versions_warn_and_damaged_ones_are_refused(tmp_path):
+    path = _frames_file(tmp_path / "new.npz", {"morphojax": "99.0.0"})
+    with pytest.warns(UserWarning, match=rf"morphojax 99.0.0, newer than this morphojax {mj.__version__}"):
+        mj.load_frames(path)
+    path = _frames_file(tmp_path / "fmt.npz", {"format_version": FORMAT_VERSION + 1})
+    with pytest.warns(UserWarning, match="file format 2"):
+        mj.load_frames(path)
+    raw = _frames_file(tmp_path / "raw.npz").read_bytes()
+    for name, content in (("cut.npz", raw[: len(raw) // 2]), ("empty.npz", b""), ("flipped.npz", raw[:200] + bytes(
+            b ^ 0x5A for b in raw[200:260]) + raw[260:])):
+        (tmp_path / name).write_bytes(content)
+        with pytest.raises(ValueError, match=rf"{name.replace('.', '[.]')}"):
+            mj.load_frames(tmp_path / name)
+    np.savez(tmp_path / "bare.npz", frames=np.zeros((2, 3, 3)), steps=np.arange(2))  # no metadata: not trusted
+    with pytest.raises(ValueError, match=r"bare\.npz is not a morphojax frames file \(no 'metadata' entry\)"):
+        mj.load_frames(tmp_path / "bare.npz")
+    with pytest.raises(ValueError, match="'steps' must increase"):  # refused before anything is written
+        mj.save_frames(tmp_path / "never.npz", np.zeros((2, 3, 3)), [4, 1])
+    assert not (tmp_path / "never.npz").exists()
 
 
 # ---- 4 and 6. nothing silently changed; checked before the work, cleaned after it ------------

@@ -61,7 +61,7 @@ TOPICS: dict[str, tuple[str, ...]] = {
     "output": (
         "render", "to_image", "save_png", "save_animation", "Gradient", "photo_palette", "kmeans",
         "hex_image", "render_hex", "mesh_image", "vertex_colours", "texture_image", "write_ply",
-        "write_obj", "save_npz", "load_npz", "to_jsonable",
+        "write_obj", "save_npz", "load_npz", "save_frames", "load_frames", "to_jsonable",
     ),
 }
 

@@ -19,7 +19,7 @@ import numpy as np
 from PIL import Image
 
 import morphojax as mj
-from .._files import write_npz
+from .._frames_files import save_frames
 from ._automaton_outputs import (automaton_stats, frames_outputs, line_chart, run_automaton, save_cells_npz,
                                  timed_run, xy_chart)
 from ._registry import AutomatonPreset, register, registered
@@ -65,7 +65,8 @@ def _young_fig8(seed, quick, out, frames):
         mj.montage(strip, n_cols, row_labels=[f"w2 = {w:g}" for w in FIG8_W2],
                    col_labels=[f"t = {t}" for t in np.asarray(result.frame_steps)[0]]).save(frames_png)
         frames_npz = out.with_name(out.stem + "_frames.npz")
-        write_npz(frames_npz, frames=np.asarray(result.frames), steps=np.asarray(result.frame_steps)[0])
+        save_frames(frames_npz, np.asarray(result.frames), np.asarray(result.frame_steps)[0], frame_axis=1, states=2,
+                    runs=[{"w2": w} for w in FIG8_W2])
         files += [str(frames_png), str(frames_npz)]
     return {"steps": FIG8_STEPS, "lattice": [size, size], "runs": per, "seconds_run": round(seconds, 3), "files": files}
 

@@ -25,6 +25,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 import morphojax as mj
 from .._files import write_npz
+from .._frames_files import save_frames
 from ..automata import SPECIES_COLOURS
 
 
@@ -69,7 +70,7 @@ def frames_outputs(out: Path, frames, frame_steps, k, scale) -> list[str]:
     keep = frame_steps >= 0
     frames, frame_steps = frames[keep], frame_steps[keep]
     npz = out.with_name(out.stem + "_frames.npz")
-    write_npz(npz, frames=frames, steps=frame_steps)
+    save_frames(npz, frames, frame_steps, states=k + 1)  # with checked metadata (version, format, states)
     mid = [f if f.ndim == 2 else f[f.shape[0] // 2] for f in frames]
     png = out.with_name(out.stem + "_frames.png")
     mj.montage([mj.cells_image(f, k, scale) for f in mid], min(len(mid), 6),
