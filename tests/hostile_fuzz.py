@@ -252,17 +252,19 @@ def frames_file(path: Path, field=None, value=None) -> Path:
 
 
 SWEEP_SIZES = [  # the Python API's sweeps and maps beyond the limit or the counters (run after the fixes only)
-    dict(vary={"ratio": np.linspace(4, 40, 10**6)}, shape=(50, 50)),
-    dict(vary={"ratio": np.arange(2.0**16), "upper_a": np.arange(2.0**16)}, shape=(4, 4)),
-    dict(vary=[{"ratio": 4.0}] * 10**5, shape=(500, 500)), dict(vary={"ratio": [4.0, 5.0]}, shape=(50000, 50000)),
-    dict(vary={"ratio": [4.0, 5.0]}, shape=(8, 8), capacity=(10**5, 10**5)),
-    dict(vary={"ratio": [4.0, 5.0]}, shape=(16.5, 16)), dict(vary={"ratio": [4.0, 5.0]}, shape=(8, 8), steps=2**31 + 5),
+    {"vary": {"ratio": np.linspace(4, 40, 10**6)}, "shape": (50, 50)},
+    {"vary": {"ratio": np.arange(2.0**16), "upper_a": np.arange(2.0**16)}, "shape": (4, 4)},
+    {"vary": [{"ratio": 4.0}] * 10**5, "shape": (500, 500)}, {"vary": {"ratio": [4.0, 5.0]}, "shape": (50000, 50000)},
+    {"vary": {"ratio": [4.0, 5.0]}, "shape": (8, 8), "capacity": (10**5, 10**5)},
+    {"vary": {"ratio": [4.0, 5.0]}, "shape": (16.5, 16)},
+    {"vary": {"ratio": [4.0, 5.0]}, "shape": (8, 8), "steps": 2**31 + 5},
 ]
 
 
 def later_classes(table, n: int) -> None:
     """The classes added after the first table: frames files, 16-bit PNGs, the Python sweep."""
-    from test_hostile import _png16  # the 16-bit PNG writer of the tests (Pillow writes 16-bit grey only)
+    # the 16-bit PNG writer of the tests (Pillow writes 16-bit grey only)
+    from test_hostile import _png16
 
     import fitting
 
@@ -293,7 +295,7 @@ def later_classes(table, n: int) -> None:
         table["damaged 16-bit PNG (`fitting.load_target`, `Gradient.from_photo`)"][
             outcome(lambda: mj.Gradient.from_photo(q), q.name)] += 1
     for kwargs in [] if BEFORE else SWEEP_SIZES:  # before: a grid of 2^32 members, a 10^5-member run
-        kw = dict(key=0, dt=0.01, steps=10) | kwargs
+        kw = {"key": 0, "dt": 0.01, "steps": 10} | kwargs
         table["Python `mj.sweep` sizes (10^6 members, a 2^32-member grid, 10^5 sets, huge shapes, 16.5, steps)"][
             outcome(lambda: mj.sweep(mj.Turing(), **kw), "sweep")] += 1
     if not BEFORE:
