@@ -21,6 +21,13 @@ __all__ = ["GREY", "colourise", "kmeans", "photo_palette", "render_coat"]
 GREY = [(0.0, (0, 0, 0)), (1.0, (255, 255, 255))]
 
 
+def unit(x) -> np.ndarray:
+    """A field mapped to [0, 1] by its 2% and 98% quantiles (as the statistics see it)."""
+    x = np.asarray(x, float)
+    lo, hi = np.quantile(x, [0.02, 0.98])
+    return np.clip((x - lo) / max(hi - lo, 1e-9), 0, 1)
+
+
 def colourise(field, stops) -> np.ndarray:
     """(h, w, 3) uint8: a field in [0, 1] coloured by interpolating the stops in CIELAB."""
     from skimage.color import lab2rgb, rgb2lab
@@ -43,7 +50,6 @@ def render_coat(result, size=512, palette="photo", seed: int = 0) -> Image.Image
     import jax
     import morphojax as mj
 
-    from ._report import unit
 
     width, height = (size, size) if np.isscalar(size) else (int(size[0]), int(size[1]))
     if palette == "photo":

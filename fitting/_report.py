@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from ._palette import GREY, colourise, unit
+
 
 def region_stats(field, thresh=None) -> dict:
     """Non-differentiable statistics of the bright (pigment-high) phase: spots per 1000 cells,
@@ -31,13 +33,6 @@ def region_stats(field, thresh=None) -> dict:
         "eccentricity_mean": float(ecc.mean()) if len(ecc) else 0.0,
         "euler_number": int(euler_number(mask, connectivity=2)),
     }
-
-
-def unit(x) -> np.ndarray:
-    """A field mapped to [0, 1] by its 2% and 98% quantiles (as the statistics see it)."""
-    x = np.asarray(x, float)
-    lo, hi = np.quantile(x, [0.02, 0.98])
-    return np.clip((x - lo) / max(hi - lo, 1e-9), 0, 1)
 
 
 def describe(result) -> str:
@@ -130,7 +125,6 @@ def preview(result, scale: int | None = None) -> Image.Image:
     """target | fitted simulation | loss curve | the fit in the animal's colours, with the
     verdict, the fitted parameters, family, resolution, intervals and the ranking with its
     reasons underneath."""
-    from ._palette import GREY, colourise
 
     tf, ff = result.fields["target"], result.fields["fit"]
     side = 256

@@ -55,7 +55,7 @@ class FitResult:
         """One simulated field of the fit at lattice resolution, in [0, 1] with the pigment
         bright: the species compared with the target, so orientation and polarity are the
         target's after `invert`."""
-        from ._report import unit
+        from ._palette import unit
 
         return unit(self.fields["fit"])
 

@@ -20,13 +20,7 @@ PACKAGES = ("morphojax", "fitting")
 # Circles still open, each as the one edge (importer, imported) whose removal breaks it, with
 # who must remove it. Keep this list short: an entry whose edge is gone fails
 # `test_allowed_edges_still_exist`, so a fixed circle leaves the list in the same commit.
-ALLOWED_EDGES = {
-    # fitting/_palette.render_coat imports `unit` from _report (function level), and
-    # _report.preview imports GREY and colourise from _palette (function level). The
-    # owners of fitting/ must remove it: `unit` (a field mapped to [0, 1] by its quantiles)
-    # belongs below both, e.g. in _palette or a small module of field statistics.
-    ("fitting._palette", "fitting._report"): "fitting/ (issue 36)",
-}
+ALLOWED_EDGES = {}
 
 
 def _module_files():
