@@ -75,7 +75,8 @@ class RunStatus(eqx.Module):
             where = f"step {int(self.nonfinite_step)}"
             if start is not None and is_concrete(start):
                 where += f" (step {int(self.nonfinite_step) - int(start) + 1} of this call)"
-            return (f"the state became non-finite (NaN or Inf) at {where}: the run blew up. "
+            return (f"the state became non-finite (NaN or Inf) at {where}: the run blew up (with an IMEX solver "
+                    "off the transforms, a conjugate-gradient solve that did not converge ends the same way). "
                     "Reduce dt, check the parameters, or use throw=False to get the state anyway.")
         if bool(self.overflow):
             return "growth exceeded the state's capacity during the run"

@@ -359,3 +359,19 @@ def test_until_on_a_phase_and_a_sweep(turing_start):
     assert mj.Phase.from_dict(phase.to_dict()) == phase
     with pytest.raises(ValueError, match="Phase.until"):
         mj.Phase(model, steps=10, dt=0.01, until=1e-3)
+
+
+def test_a_conjugate_gradient_solve_that_does_not_converge_is_reported(monkeypatch):
+    """JAX's cg has no convergence flag: a solve that ends with half its digits lost returns
+    NaN, so the run reports the step (here the first), and the message names the cause."""
+    import morphojax.solvers._implicit as implicit
+
+    model = mj.Reaction(lambda x, p: 0.0 * x, diffusion=[50.0], lower=-np.inf)
+    state = mj.State.from_arrays([np.random.default_rng(3).normal(size=(10, 11))])  # a shape no other test traces
+    converged = mj.run_status(model, state, 3, 2.0, domain=mj.HexLattice(), solver=mj.IMEX(1))
+    assert bool(converged.status.ok)
+    monkeypatch.setattr(implicit, "CG_MAXITER", 1)  # read when the step is traced
+    state = mj.State.from_arrays([np.random.default_rng(3).normal(size=(10, 13))])
+    run = mj.run_status(model, state, 3, 2.0, domain=mj.HexLattice(), solver=mj.IMEX(1))
+    assert int(run.nonfinite_step) == 1
+    assert "conjugate-gradient solve that did not converge" in run.status.message()
