@@ -6,6 +6,7 @@ time, which costs nothing on healthy runs, also under vmap). `checkpoint` remate
 chunks under `jax.grad`. A growing lattice is run on blocks chosen by an execution plan
 (`_plan`). With a progress bar the run goes in pieces, each one compiled call; the pieces
 of a growing run share the block sizes of the whole run, so they share compiled programs.
+An adaptive solver's run goes to its own controller (`_adaptive`).
 """
 
 from __future__ import annotations
@@ -19,11 +20,12 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
+from ._adaptive import integrate_adaptive
 from ._checks import is_concrete
 from ._progress import progress_bar
 from ._state import State
 from ._status import RunStatus
-from ._step import Carry, Config, growth_key, make_attempt, make_step
+from ._step import Carry, Config, growth_key, make_step
 
 
 def _scan(step, carry, n: int):
@@ -103,7 +105,7 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     leave the carry as it is and the chunks after it are skipped.
     """
     if solver is not None and solver.adaptive:  # steps * dt is the time to reach; pieces keep their own time
-        return _integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names,
+        return integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names,
                                    growable)
     time0, step_t = (time0, step0) if clock is None else clock
     steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
@@ -166,11 +168,7 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     if rem:
         c = run_chunk(c, jnp.asarray(schedule[-1] if schedule is not None else 0, jnp.int32), rem)
     final = _crop_state(domain, c, names, time0, step_t, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, frames, _steady_time(c, dt), jnp.asarray(False)
-
-
-def _steady_time(c: Carry, dt):
-    return jnp.asarray(jnp.nan, dt.dtype) if c.steady is None else c.steady
+    return final, c.bad, c.overflow, frames, c.steady_time(dt), jnp.asarray(False)
 
 
 def _until_steady(step, domain, tol: float, dt, time0, step0):
@@ -185,54 +183,6 @@ def _until_steady(step, domain, tol: float, dt, time0, step0):
         return jax.tree_util.tree_map(lambda old, fresh: jnp.where(done, old, fresh), c, new)
 
     return stepped
-
-
-# Step-size control of the adaptive solvers: the next step is h (0.9 / error)^(1/2) (the
-# embedded estimate's local error is O(h^2)), changed by at most 5x up and 5x down per
-# attempt; a run whose step falls below 1e-9 of its span stops there, `incomplete`.
-SAFETY, MAX_GROWTH, MAX_SHRINK, SMALLEST = 0.9, 5.0, 0.2, 1e-9
-
-
-def _integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names, growable):
-    """Steps of varying size h until the time steps * dt is reached: each attempt is kept
-    when its error norm is <= 1 and retried with a smaller h otherwise, inside the loop.
-    The state's step counts the steps kept; its time is time0 + the time reached. A run
-    whose `solver.max_steps` attempts do not reach the time, or whose step stalls, is
-    `incomplete` (the last element returned)."""
-    attempt = make_attempt(model, domain, dt, cfg, solver, fields.shape[1:])
-    span = steps * dt
-    steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
-    c = Carry(domain.carry(fields, size, False), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False), steady)
-    zero = jnp.zeros((), dt.dtype)
-
-    def short(t):
-        return t < span * (1 - 1e-6)
-
-    def running(s):
-        c, t, h, stalled = s
-        going = short(t) & (c.bad < 0) & ~stalled
-        return going if until is None else going & jnp.isnan(c.steady)
-
-    def one(s):
-        c, t, h, stalled = s
-        h_try = jnp.minimum(h, span - t)
-        new, error = attempt(c, h_try)
-        ok = error <= 1.0  # False for NaN: a non-finite step is retried smaller
-        factor = jnp.where(error > 0, SAFETY * jnp.where(error > 0, error, 1.0) ** -0.5, MAX_GROWTH)
-        h_next = h_try * jnp.clip(jnp.nan_to_num(factor, nan=MAX_SHRINK), MAX_SHRINK, MAX_GROWTH)
-        if until is not None:
-            change = jnp.max(jnp.abs(domain.interior(new.p) - domain.interior(c.p))) / h_try
-            new = new._replace(steady=jnp.where(change < until.tol, time0 + t + h_try, c.steady))
-        stalled = stalled | ((h_next < SMALLEST * span) & ~ok)
-        c = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new, c)
-        return c, jnp.where(ok, t + h_try, t), h_next, stalled
-
-    c, t, _, _ = eqxi.while_loop(running, one, (c, zero, jnp.asarray(dt, dt.dtype), jnp.asarray(False)),
-                                 max_steps=solver.max_steps, kind="checkpointed")
-    final = State(domain.interior(c.p), c.size, c.step, time0 + t, names, growable)
-    stopped = jnp.asarray(False) if until is None else ~jnp.isnan(c.steady)
-    incomplete = short(t) & (c.bad < 0) & ~stopped
-    return final, c.bad, c.overflow, None, _steady_time(c, dt), incomplete
 
 
 def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg, checkpoint, segments, names,
@@ -258,7 +208,7 @@ def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg,
         sub = jax.lax.scan(body, c._replace(p=domain.block(c.p, *blocks[b])), None, length=repeat)[0]
         c = sub._replace(p=domain.unblock(c.p, sub.p))
     final = _crop_state(domain, c, names, time0, step0, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, None, _steady_time(c, dt), jnp.asarray(False)
+    return final, c.bad, c.overflow, None, c.steady_time(dt), jnp.asarray(False)
 
 
 def default_chunk(steps: int, checkpoint) -> int:

@@ -37,6 +37,10 @@ class Carry(NamedTuple):
     overflow: Array  # growth wanted to pass the capacity
     steady: Array | None = None  # with a stopping rule: simulated time it stopped at, NaN before
 
+    def steady_time(self, dt) -> Array:
+        """The time a stopping rule stopped the run at; NaN before, or without a rule."""
+        return jnp.asarray(jnp.nan, dt.dtype) if self.steady is None else self.steady
+
 
 class Config(NamedTuple):
     """Static configuration of a run's step."""
@@ -142,32 +146,6 @@ def sources_and_limits(m, new, production: dict, ndim: int, bounds):
         value = new[i] + production[i] if i in production else new[i]
         parts.append(jnp.clip(value, lower[i], upper[i]) if bounds == "clip" else value)
     return jnp.stack(parts)
-
-
-def make_attempt(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, solver, shape):
-    """attempt(carry, h) -> (carry after a step of h, error norm), for an adaptive solver.
-
-    The norm is max |high - low| / (atol + rtol max|x_i|) over species i and cells: high and
-    low are the step and its embedded lower-order estimate, both clamped to the limits
-    (where a limit binds both land on it, and the scheme's error there does not reach the
-    solution), and the relative part is scaled by each species' largest magnitude, not
-    cell by cell: a cell near 0 would otherwise hold the step to the transforms' float32
-    rounding (measured: a cell-by-cell scale kept h at 1e-4 on the bounded Turing model,
-    where the rounding of two transform round trips, about 2e-6, met atol 1e-6). A step is
-    acceptable when the norm is <= 1.
-    """
-    advance = solver.make_advance(model, domain, dt, cfg.bounds, shape)
-
-    def attempt(c: Carry, h):
-        x = domain.interior(c.p)
-        acting = model.at(x)
-        high, low = (sources_and_limits(acting, y, {}, domain.ndim, cfg.bounds) for y in advance(acting, x, h))
-        spatial = tuple(range(1, x.ndim))
-        scale = solver.atol + solver.rtol * jnp.max(jnp.abs(x), axis=spatial, keepdims=True)
-        error = jnp.max(jnp.abs(high - low) / scale)
-        return c._replace(p=domain.write(c.p, high, c.size, False), step=c.step + 1), error
-
-    return attempt
 
 
 def grow_if_due(growth, domain: AbstractDomain, p, size, k, dt, key, overflow):

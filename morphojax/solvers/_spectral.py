@@ -172,7 +172,7 @@ class ETDRK(_TransformSolver):
     the embedded ETD1 estimate, which is the scheme's own first stage and costs nothing:
     `steps * dt` is then the simulated time to reach and `dt` the first step, a step whose
     error norm exceeds 1 is retried smaller inside the compiled loop (see
-    `_step.make_attempt` for the norm), and at most `max_steps` attempts are made.
+    `_adaptive.make_attempt` for the norm), and at most `max_steps` attempts are made.
     """
 
     def __init__(self, order: int = 2, *, rtol: float | None = None, atol: float | None = None,
