@@ -18,7 +18,16 @@ Where a listing is inconsistent the preset decides, and says so here:
 - Fig. 5.1's listing has no `stop`; the preset snaps the iterations of the figure, 0, 2,
   5, 50 and 1000.
 
-Listings A.5, A.7 and A.8 (Figs. 6.3, 6.5, 6.6) grow from one cell, so that cell's random
+The panels of Figs. 6.3-6.5 that the listings do not run as printed are the options the
+listings hold in comments, switched on (the text replaced must occur once, or the preset
+fails): Fig. 6.3 (c) makes U anisotropic ("define chemical U //anisotropic"), (d) makes V
+anisotropic with Du 0.04 ("diff 0.08 // 0.04"), and (a) is (b)'s run after 1000
+iterations; Fig. 6.4's rows are Listing A.6's commented snap (iterations 0 to 16,000),
+isotropic and with V anisotropic; Fig. 6.5 (b) divides at "direction 10 dev 0" (the
+comment of "direction 0 dev 180"), so each child is turned exactly 10 degrees from its
+parent.
+
+Listings A.5, A.7 and A.8 (Figs. 6.3, 6.5, 6.6, and their variants) grow from one cell, so that cell's random
 concentrations decide the run: V = 0 is absorbing under the clamp at 0 (there dV/dt =
 -12 s), and the cell of seed 0 loses V in all three (seeds 1 and 2 keep it; the gallery
 uses seed 1). Every child starts as its parent was when the rules ran, one update behind
@@ -37,6 +46,43 @@ from ..cells import load_listing, save_cells, write_cells_svg
 from ..cells._listing import listing_path
 from ._registry import AutomatonPreset, register
 
+FIG6_4_SERIES = (0, 4000, 8000, 12000, 16000)  # Fig. 6.4's columns (A.6's commented snap)
+# Section 7.1's listing (Fig. 7.1), printed in the text, not in Appendix A: Life by slow
+# diffusion. R (limit 1) is 1 on live cells; a counter C alternates 0, 1. After an iteration
+# of diffusion at rate 0.01 alone (C = 0), a cell holds R_i + 0.01 sum_j (R_j - R_i) over the
+# 8 cells of the square grid within the influence radius 3 (spacing 2): 0.01 n on a dead
+# cell with n live neighbours, 1 - 0.01 (8 - n) on a live one. At C = 1 every cell loses 1
+# and gains 2 where R shows 3 live neighbours of a dead cell (0.03) or 2 or 3 of a live one
+# (0.94, 0.95), clamped to [0, 1]: one generation of B3/S23 every two iterations. A live
+# cell on the grid's edge has fewer than 8 neighbours, reads more than 0.954 and dies.
+FIG7_1_LISTING = """define chemical R limit 1
+define chemical C
+
+// ----- prepattern
+
+use chemical R conc 0 diff 0.01
+use chemical C conc 0 diff 0
+create sqr_grid 25 25
+set cell 526 chemical R conc 1
+set cell 527 chemical R conc 1
+set cell 528 chemical R conc 1
+set cell 553 chemical R conc 1
+set cell 577 chemical R conc 1
+
+// ----- rules
+// periodic counter
+rule if C conc == 0 change C conc +1
+rule if C conc == 1 change C conc -1
+// kill all positions by default
+rule if C conc == 1 change R conc -1
+// a position with three neighbors becomes populated
+rule if C conc == 1 and
+rule if R conc in 0.025 0.034 change R conc +2
+// a position with two or three neighbors survives to next generation
+rule if C conc == 1 and
+rule if R conc in 0.935 0.954 change R conc +2
+stop at 160
+"""
 A18_OMITTED_SEEDS = (1005, 1015, 1025, 1035, 1045, 1410, 1420, 1430, 1440, 1805, 1815, 1825, 1835, 1845,
                      2210, 2220, 2230, 2240, 2605, 2615, 2625, 2635, 2645)
 
@@ -46,6 +92,20 @@ def _fix_a17_window(text: str) -> str:
     if wrong not in text:
         raise ValueError("Listing A.17 no longer holds the rule the preset corrects")
     return text.replace(wrong, "rule from 2500 until 2500 always change P diff -0.01")
+
+
+def _replace(*pairs: tuple[str, str]) -> Callable[[str], str]:
+    """An edit of a listing's text that replaces each `old` (which must occur exactly once)
+    by `new`: the variants a figure shows beside the published listing's own run."""
+
+    def edit(text: str) -> str:
+        for old, new in pairs:
+            if text.count(old) != 1:
+                raise ValueError(f"the listing no longer holds {old!r} once, which the preset edits")
+            text = text.replace(old, new)
+        return text
+
+    return edit
 
 
 def _add_before_rules(text: str, lines: str) -> str:
@@ -58,7 +118,8 @@ def _add_before_rules(text: str, lines: str) -> str:
 
 @dataclasses.dataclass(frozen=True)
 class CellPreset(AutomatonPreset):
-    """A thesis experiment on cells: `listing` (a shipped name), the iterations shown
+    """A thesis experiment on cells: `listing` (a shipped name, or the name of `text`, a
+    listing printed in the thesis's text rather than its appendix), the iterations shown
     (`snapshots`, default the listing's snaps or its end), `quick` iterations, the picture
     (`texture` or discs) and an `edit` of the listing's text (see the module's notes)."""
 
@@ -68,14 +129,18 @@ class CellPreset(AutomatonPreset):
     quick: tuple = ()
     texture: bool = False
     edit: Callable[[str], str] | None = dataclasses.field(default=None, repr=False)
+    text: str = dataclasses.field(default="", repr=False)
 
     def load(self):
         """The listing as this preset runs it (after its edit)."""
-        path = listing_path(self.listing)
-        text = path.read_text()
+        if self.text:
+            text, name, folder = self.text, self.listing, None
+        else:
+            path = listing_path(self.listing)
+            text, name, folder = path.read_text(), path.stem, path.parent
         if self.edit is not None:
             text = self.edit(text)
-        return load_listing(text, name=path.stem, directory=path.parent)
+        return load_listing(text, name=name, folder=folder)
 
 
 def _run_cells(item: CellPreset, seed: int, quick: bool, out: Path, frames: bool) -> dict:
@@ -117,12 +182,12 @@ def _listing_shots(listing) -> tuple:
     return tuple(snaps) if len(snaps) > 1 else (listing.steps,)
 
 
-def _cells(name, listing, figure, description, *, quick, snapshots=(), texture=False, edit=None):
+def _cells(name, listing, figure, description, *, quick, snapshots=(), texture=False, edit=None, text=""):
     def build(seed, quick_, out, frames):
         return _run_cells(item, seed, quick_, out, frames)
 
     item = CellPreset(name, description, figure, build, listing=listing, snapshots=tuple(snapshots),
-                      quick=tuple(quick), texture=texture, edit=edit)
+                      quick=tuple(quick), texture=texture, edit=edit, text=text)
     register(item)
 
 
@@ -141,10 +206,30 @@ _cells("thesis-fig6.2", "A.4", "thesis Fig. 6.2 (Listing A.4)",
        "a growing front reaching the walls of a 200x200 domain, V anisotropic", quick=(1500,))
 _cells("thesis-fig6.3", "A.5", "thesis Fig. 6.3 (Listing A.5)",
        "centre growth: only the newest cell divides, 137.5 degrees on (spiral phyllotaxis)", quick=(400,))
+_cells("thesis-fig6.3-closeup", "A.5", "thesis Fig. 6.3 (a) (Listing A.5)",
+       "centre growth close up: (b)'s run after only 1000 iterations (501 cells)", snapshots=(1000,),
+       quick=(100,))
+_cells("thesis-fig6.3-anisotropic-u", "A.5", "thesis Fig. 6.3 (c) (Listing A.5, U anisotropic)",
+       "centre growth with Du 0.08 and U anisotropic (the listing's commented option)", quick=(100,),
+       edit=_replace(("define chemical U //anisotropic", "define chemical U anisotropic")))
+_cells("thesis-fig6.3-anisotropic-v", "A.5", "thesis Fig. 6.3 (d) (Listing A.5, Du 0.04, V anisotropic)",
+       "centre growth with Du 0.04 and V anisotropic (the listing's commented options)", quick=(100,),
+       edit=_replace(("define chemical V //anisotropic", "define chemical V anisotropic"),
+                     ("diff 0.08 // 0.04", "diff 0.04")))
 _cells("thesis-fig6.4", "A.6", "thesis Fig. 6.4 (Listing A.6)",
        "growth from a fixed spine of 40 cells, division limit 8", quick=(1500,))
+_cells("thesis-fig6.4-series", "A.6", "thesis Fig. 6.4, top row (Listing A.6)",
+       "growth from a fixed spine, isotropic: iterations 0, 4000, 8000, 12000 and 16000 (the listing's "
+       "commented snap)", snapshots=FIG6_4_SERIES, quick=(0, 200, 400))
+_cells("thesis-fig6.4-anisotropic", "A.6", "thesis Fig. 6.4, bottom row (Listing A.6, V anisotropic)",
+       "growth from a fixed spine with V anisotropic: stripes more uniformly oriented, iterations 0 to 16000",
+       snapshots=FIG6_4_SERIES, quick=(0, 200, 400),
+       edit=_replace(("define chemical V //anisotropic", "define chemical V anisotropic")))
 _cells("thesis-fig6.5", "A.7", "thesis Fig. 6.5 (Listing A.7)",
        "growth on borders: cells with 3 or fewer neighbours divide, from one cell", quick=(1500,))
+_cells("thesis-fig6.5-directed", "A.7", "thesis Fig. 6.5 (b) (Listing A.7, direction 10)",
+       "growth on borders, each child exactly 10 degrees from its parent (the listing's commented option)",
+       quick=(1500,), edit=_replace(("divide direction 0 dev 180 // 10 dev 0", "divide direction 10 dev 0")))
 _cells("thesis-fig6.6", "A.8", "thesis Fig. 6.6 (Listing A.8)",
        "branching: cells with 2 or fewer neighbours divide, sometimes 20 degrees aside", quick=(1500,))
 _cells("thesis-fig6.7", "A.9", "thesis Fig. 6.7 (Listing A.9)",
@@ -154,6 +239,9 @@ _cells("thesis-fig6.8", "A.10", "thesis Fig. 6.8 (Listing A.10)",
        "uniform growth with frozen concentrations: duplicates roughen the pattern", quick=(0, 300))
 _cells("thesis-fig6.10", "A.11", "thesis Fig. 6.10 (Listing A.11)",
        "uniform growth with reinforcement of a copied pattern R", quick=(0, 300))
+_cells("thesis-fig7.1-cells", "fig7.1", "thesis Fig. 7.1 (listing of section 7.1)",
+       "the Game of Life (B3/S23) by rules on a 25x25 grid of cells: a glider, 80 generations in 160 iterations",
+       snapshots=(0, 160), quick=(0, 16), text=FIG7_1_LISTING)
 _cells("thesis-fig7.2-cells", "A.12", "thesis Fig. 7.2 (Listing A.12)",
        "Wireworld from three reagents and a clock of three iterations", snapshots=(0, 6, 12, 18, 24, 72),
        quick=(0, 6, 12))
