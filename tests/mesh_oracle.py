@@ -3,7 +3,8 @@
 The cotangent Laplacian is assembled triangle by triangle in plain loops, its angles from
 arccos of the normalised edge directions and its mixed Voronoi areas from the triangle's
 circumcentre (the area of the quadrilateral vertex - edge midpoint - circumcentre - edge
-midpoint), a different route from morphojax's vectorised cotangent formulas. `gray_scott_run`
+midpoint), a different route from morphojax's vectorised cotangent formulas; the umbrella
+Laplacian from each vertex's set of neighbours, not from a table of edges. `gray_scott_run`
 is the same forward-Euler step as SciPy sparse products; benchmarks/bench_mesh.py times it.
 """
 
@@ -69,6 +70,22 @@ def laplacian(vertices, faces, mass="voronoi"):
     """The operator M^-1 (-K) as a sparse matrix (length^-2)."""
     k, m = cotangent_matrices(vertices, faces, mass)
     return sp.diags(1.0 / m.diagonal()) @ (-k)
+
+
+def umbrella_laplacian(n, faces):
+    """Paper 004's "equally weighted" Laplacian as a sparse matrix, from each vertex's set of
+    edge neighbours gathered triangle by triangle in plain loops: (L u)_i = the mean of u
+    over the neighbours of i, less u_i."""
+    neighbours = [set() for _ in range(n)]
+    for tri in np.asarray(faces):
+        for a in tri:
+            neighbours[int(a)].update(int(b) for b in tri if b != a)
+    lap = sp.lil_matrix((n, n))
+    for i, around in enumerate(neighbours):
+        for j in around:
+            lap[i, j] = 1.0 / len(around)
+        lap[i, i] = -1.0
+    return lap.tocsr()
 
 
 def gray_scott_run(lap, u, v, feed, kill, du, dv, dt, steps, dtype=np.float64):

@@ -405,3 +405,100 @@ def test_anisotropic_mesh_conserves_mass_serialises_and_differentiates():
         g = float(jax.grad(loss)(0.5))
         fd = (float(loss(0.5 + 1e-6)) - float(loss(0.5 - 1e-6))) / 2e-6
         assert g == pytest.approx(fd, rel=1e-6) and g != 0.0
+
+
+# ---- the umbrella operator (paper 004's "equally weighted" Laplacian) ------------------------
+@pytest.fixture(scope="module")
+def umbrella(small):
+    return mj.Mesh(small.vertices, small.faces, operator="umbrella")
+
+
+def _dense_operator(mesh):
+    """The operator as a dense float64 matrix (column j: L applied to the unit field e_j)."""
+    with jax.enable_x64(True):
+        return np.asarray(mesh.apply(jnp.eye(mesh.n_vertices, dtype=jnp.float64)), np.float64).T
+
+
+def test_umbrella_operator_matches_oracle(umbrella):
+    """On a closed capsule and on a flat square with its boundary (corners of degree 2 and 3)."""
+    from mesh_oracle import umbrella_laplacian
+
+    rng = np.random.default_rng(40)
+    for mesh in (umbrella, mj.Mesh(*grid_mesh(7), operator="umbrella")):
+        x = rng.normal(size=(3, mesh.n_vertices))
+        ref = (umbrella_laplacian(mesh.n_vertices, mesh.faces) @ x.T).T
+        with jax.enable_x64(True):
+            got = np.asarray(mesh.apply(jnp.asarray(x)))
+        np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-6)
+    corners = mj.Mesh(*grid_mesh(7), operator="umbrella").masses()[[0, 6, 42, 48]]
+    np.testing.assert_allclose(corners, [3, 2, 2, 3])  # the diagonal runs from corner 0 to corner 48
+
+
+def test_umbrella_operator_invariants(umbrella, small):
+    """Constants are fixed points; L is symmetric in the degree-weighted inner product (the
+    weights `masses()` gives the IMEX solve), so pure diffusion conserves sum deg_i u_i; its
+    spectrum lies in [-2, 0] and the stated radius bounds it closely; it ignores lengths."""
+    n = umbrella.n_vertices
+    np.testing.assert_array_equal(np.asarray(umbrella.apply(jnp.full((n,), 3.0))), 0.0)
+    lap = _dense_operator(umbrella)
+    degrees = umbrella.masses()
+    np.testing.assert_allclose(degrees, np.count_nonzero(lap - np.diag(np.diag(lap)), axis=1), rtol=1e-6)
+    weighted = degrees[:, None] * lap
+    np.testing.assert_allclose(weighted, weighted.T, atol=1e-6)
+    eig = np.linalg.eigvals(lap).real
+    assert eig.max() < 1e-9 and eig.min() >= -2.0 - 1e-9
+    assert -eig.min() <= umbrella.rho <= 1.02 * -eig.min()
+    assert umbrella.rho <= 2.0 and "umbrella" in umbrella.description
+    scaled = mj.Mesh(3.0 * np.asarray(small.vertices), small.faces, operator="umbrella")
+    np.testing.assert_allclose(_dense_operator(scaled), lap, atol=1e-12)  # no length unit
+    model = mj.GrayScott(feed=0.0, kill=0.0, du=0.3, dv=0.1, lower=-math.inf)
+    u = np.random.default_rng(41).uniform(0.5, 1.5, n)
+    with jax.enable_x64(True):
+        out = mj.simulate(model, mj.State.from_arrays([u, np.zeros_like(u)]), 300,
+                          0.9 * umbrella.max_stable_dt(0.3), domain=umbrella).arrays()[0]
+    assert umbrella.total(out) == pytest.approx(umbrella.total(u), rel=1e-12)
+    assert out.std() < 0.2 * u.std()
+
+
+def test_umbrella_gray_scott_run_matches_oracle(umbrella):
+    from mesh_oracle import umbrella_laplacian
+
+    rng = np.random.default_rng(42)
+    n = umbrella.n_vertices
+    u, v = 1.0 - rng.uniform(0, 0.5, n), rng.uniform(0, 0.3, n)
+    dt = 0.9 * umbrella.max_stable_dt(GS["du"])
+    ref = gray_scott_run(umbrella_laplacian(n, umbrella.faces), u, v, dt=dt, steps=100, **GS)
+    with jax.enable_x64(True):
+        got = mj.simulate(mj.GrayScott(**GS), mj.State.from_arrays([u, v]), 100, dt, domain=umbrella).arrays()
+    np.testing.assert_allclose(got[0], ref[0], atol=1e-6)
+    np.testing.assert_allclose(got[1], ref[1], atol=1e-6)
+
+
+def test_umbrella_imex_is_backward_euler(umbrella):
+    """IMEX(1) on pure diffusion is one backward-Euler step (I - dt D L) x1 = x, solved by
+    conjugate gradients in the degree-weighted inner product, against a dense solve."""
+    n = umbrella.n_vertices
+    with jax.enable_x64(True):
+        x = np.random.default_rng(43).normal(size=(2, n))
+        model = mj.Reaction(lambda y, p: 0.0 * y, diffusion=[1.0, 0.3], lower=-np.inf)
+        out = np.asarray(mj.simulate(model, mj.State.from_arrays(list(x)), 1, 5.0, domain=umbrella,
+                                     solver=mj.IMEX(1)).fields)
+    lap = _dense_operator(umbrella)
+    for i, rate in enumerate((1.0, 0.3)):
+        np.testing.assert_allclose(out[i], np.linalg.solve(np.eye(n) - 5.0 * rate * lap, x[i]), atol=1e-9)
+
+
+def test_umbrella_mesh_serialises_and_refuses_what_it_lacks(umbrella, small):
+    back = _serialise.domain_from_dict(json.loads(json.dumps(_serialise.domain_to_dict(umbrella))))
+    assert back.operator == "umbrella" and back.rho == umbrella.rho
+    for name in ("neighbours", "weights", "inverse_mass"):
+        np.testing.assert_array_equal(np.asarray(getattr(back, name)), np.asarray(getattr(umbrella, name)))
+    assert _serialise.domain_from_dict(_serialise.domain_to_dict(small)).operator == "cotangent"
+    with pytest.raises(ValueError, match="operator"):
+        mj.Mesh(small.vertices, small.faces, operator="uniform")
+    with pytest.raises(ValueError, match="degree"):
+        mj.Mesh(small.vertices, small.faces, mass="barycentric", operator="umbrella")
+    with pytest.raises(ValueError, match="cotangent"):
+        mj.Mesh(small.vertices, small.faces, direction=[0.0, 0.0, 1.0], operator="umbrella")
+    mesh = mj.Mesh.icosphere(1, operator="umbrella")  # the primitives pass it on
+    assert mesh.operator == "umbrella" and set(np.round(mesh.masses()).astype(int)) == {5, 6}

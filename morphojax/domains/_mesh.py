@@ -1,4 +1,5 @@
-"""A triangle mesh: the cotangent Laplace-Beltrami operator with a lumped mass matrix.
+"""A triangle mesh: the cotangent Laplace-Beltrami operator with a lumped mass matrix, or
+the uniform "umbrella" Laplacian.
 
 Fields have shape (species, vertices): one value per vertex, in the mesh's vertex order
 (`State.from_arrays([u, v])` with 1D arrays). The operator is the standard linear-finite-
@@ -27,6 +28,17 @@ iterations (scipy's eigsh) on the symmetric form M^-1/2 (D - W) M^-1/2, times 1.
 iterations approach it from below), and never above the Gershgorin bound
 max_i 2 sum_j |w_ij| / M_i, which holds for every matrix.
 
+The umbrella operator (`operator="umbrella"`, Lundelius's "equally weighted" Laplacian):
+
+    (L u)_i = (1 / deg_i) sum_j (u_j - u_i)   over the vertices j joined to i by an edge,
+
+the same table form with w_ij = 1 and M_i = deg_i (`_mesh_operator.umbrella_operator`). It
+ignores the geometry, so it has no length unit: L is per edge, rates are per unit time, and
+on a regular triangulation of edge h it approximates (h^2 / 4) times Laplace-Beltrami. It is
+symmetric in the degree-weighted inner product (the weights `masses()` returns and the
+conjugate-gradient IMEX solve uses), pure diffusion conserves sum_i deg_i u_i, and rho <= 2.
+It takes no `mass=` and no anisotropy.
+
 Anisotropic diffusion (`direction=`, `along=`, `across=`): the finite-element operator of
 the tangent tensor along t t^T + across (I - t t^T) on each triangle, t the direction field
 projected into the triangle's plane. Its weights are linear in the tensor, so the domain
@@ -49,10 +61,11 @@ from .._checks import check_choice
 from ._base import AbstractDomain
 from ._mesh_build import cotangent_operator, directional_weights, largest_eigenvalue, neighbour_table
 from ._mesh_files import read_mesh_file
-from ._mesh_operator import PAIRABLE, apply_operator, gathered_packed, pack_pairs, unpack_pairs
+from ._mesh_operator import PAIRABLE, apply_operator, gathered_packed, pack_pairs, umbrella_operator, unpack_pairs
 from ._mesh_shapes import count, icosphere_arrays, revolve
 
 MASSES = ("voronoi", "barycentric")
+OPERATORS = ("cotangent", "umbrella")
 
 
 # ---- checking a mesh in NumPy -----------------------------------------------------------------
@@ -120,7 +133,8 @@ def check_uv_layout(uv, uv_faces, faces):
 # ---- the domain -------------------------------------------------------------------------------
 class Mesh(AbstractDomain):
     """A triangle mesh: species live on its vertices and diffuse by the cotangent
-    Laplace-Beltrami operator with a lumped mass matrix (see the module docstring).
+    Laplace-Beltrami operator with a lumped mass matrix, or by the umbrella Laplacian (see
+    the module docstring).
 
     Args:
         vertices: (V, 3) coordinates; lengths in the mesh's units (diffusion rates are then
@@ -128,7 +142,10 @@ class Mesh(AbstractDomain):
         faces: (F, 3) vertex indices of the triangles (a manifold surface, closed or with
             boundary; a boundary is no-flux).
         mass: "voronoi" (mixed Voronoi areas, Meyer et al. 2003; default) or "barycentric"
-            (a third of each incident triangle's area).
+            (a third of each incident triangle's area); the cotangent operator's only.
+        operator: "cotangent" (default) or "umbrella": (L u)_i = (1 / deg_i) sum_j
+            (u_j - u_i) over the vertex's edges, without lengths (rates per unit time; its
+            weights M_i are the degrees; no `mass=` other than the default, no `direction=`).
 
         direction: None (isotropic), or a tangent direction field for anisotropic
             diffusion: one 3-vector (e.g. an axis, projected onto each triangle) or one
@@ -167,12 +184,20 @@ class Mesh(AbstractDomain):
     uv: np.ndarray | None  # (T, 2) texture vertices, or None
     uv_faces: np.ndarray | None  # (F, 3) texture vertices of each face's corners, or None
     mass: str = eqx.field(static=True)
+    operator: str = eqx.field(static=True)  # "cotangent" or "umbrella"
     rho: float = eqx.field(static=True)
 
     def __init__(self, vertices, faces, mass: str = "voronoi", direction=None, along=1.0, across=1.0, *,
-                 uv=None, uv_faces=None, neighbours=None, weights=None, directional=None, inverse_mass=None,
-                 rho=None):
+                 operator: str = "cotangent", uv=None, uv_faces=None, neighbours=None, weights=None,
+                 directional=None, inverse_mass=None, rho=None):
         check_choice(mass, "Mesh.mass", MASSES)
+        check_choice(operator, "Mesh.operator", OPERATORS)
+        if operator == "umbrella" and mass != "voronoi":
+            raise ValueError(f"Mesh: the umbrella operator weighs each vertex by its degree; mass={mass!r} is for "
+                             "the cotangent operator (leave mass out)")
+        if operator == "umbrella" and direction is not None:
+            raise ValueError("Mesh: anisotropic diffusion (direction=) is built on the cotangent operator's "
+                             "triangles; the umbrella operator has none: use operator='cotangent'")
         for name, value in (("along", along), ("across", across)):
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"Mesh.{name} must be a finite number > 0 (got {value})")
@@ -192,7 +217,10 @@ class Mesh(AbstractDomain):
                 raise ValueError("Mesh: the saved operator does not match the vertices")
         else:
             v, f = check_mesh(vertices, faces)
-            rows, cols, wc, m = cotangent_operator(v, f, mass)
+            if operator == "umbrella":
+                rows, cols, wc, m = umbrella_operator(len(v), f)
+            else:
+                rows, cols, wc, m = cotangent_operator(v, f, mass)
             if not (m > 0).all():
                 raise ValueError(f"Mesh: {int((m <= 0).sum())} vertices have no positive area")
             inv = 1.0 / m
@@ -217,6 +245,7 @@ class Mesh(AbstractDomain):
         self.along = jnp.asarray(along, jnp.asarray(w).dtype)
         self.across = jnp.asarray(across, jnp.asarray(w).dtype)
         self.mass = mass
+        self.operator = operator
         self.rho = float(rho)
         if (uv is None) != (uv_faces is None):
             raise ValueError("Mesh: give both uv and uv_faces (texture coordinates), or neither")
@@ -240,7 +269,8 @@ class Mesh(AbstractDomain):
 
     @property
     def description(self) -> str:
-        kind = "Laplace-Beltrami" if self.directional is None else "anisotropic"
+        kind = "anisotropic" if self.directional is not None else (
+            "umbrella" if self.operator == "umbrella" else "Laplace-Beltrami")
         return f"mesh {kind} operator ({self.n_vertices} vertices, spectral radius {self.rho:.4g})"
 
     @property
@@ -291,7 +321,8 @@ class Mesh(AbstractDomain):
         return jnp.arange(shape[-1]) < size[0]  # the active vertices come first
 
     def apply(self, fields):
-        """The Laplace-Beltrami operator on per-vertex values (..., V), in length^-2."""
+        """The mesh's operator on per-vertex values (..., V): Laplace-Beltrami in length^-2, or
+        the umbrella Laplacian (per edge)."""
         self._check_fields(fields)
         return self._operator(fields)
 
@@ -302,7 +333,8 @@ class Mesh(AbstractDomain):
 
     # ---- geometry ---------------------------------------------------------------------------
     def masses(self) -> np.ndarray:
-        """The lumped vertex areas M_i (length^2) as NumPy."""
+        """The lumped vertex areas M_i (length^2) as NumPy; the vertex degrees for the umbrella
+        operator (the weights it is symmetric in)."""
         return 1.0 / np.asarray(self.inverse_mass, np.float64)
 
     def total(self, values) -> np.ndarray:

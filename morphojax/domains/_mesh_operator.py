@@ -25,12 +25,17 @@ done differently:
   these into the step's one loop, the form the GPU figures were measured with.
 All forms give the same numbers to rounding; the choice is made when the step is traced.
 The speeds of each form are in benchmarks/results/bench_mesh.md.
+
+The tables hold either operator a `Mesh` offers: the cotangent weights and lumped areas
+(`_mesh_build`), or the umbrella operator of `umbrella_operator`, the same form with
+w_ij = 1 on every edge and M_i = deg_i.
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 PAIRABLE = (jnp.float32, jnp.float64)  # the real dtypes with a complex counterpart
 
@@ -106,3 +111,23 @@ def apply_operator(x, weights, neighbours, inverse_mass):
     """(L x) over the last axis of `x` (..., V), in the form that suits the backend."""
     form = gathered_apart if jax.default_backend() == "cpu" else gathered_fused
     return form(x, weights, neighbours, inverse_mass)
+
+
+def umbrella_operator(n: int, faces):
+    """(rows, cols, weights, masses) of the uniform "umbrella" Laplacian in the form of
+    `_mesh_build.cotangent_operator`: each edge of `faces` once in each direction with
+    weight 1, and M_i = deg_i, the number of vertices joined to i by an edge, so that
+
+        (L u)_i = (1 / deg_i) sum_j (u_j - u_i),
+
+    the mean of the neighbours' values less the vertex's own (Lundelius's "equally
+    weighted" Laplacian). It ignores the geometry: no lengths, so L and the rates are per
+    edge, not per length^2. L = D^-1 (A - D) with A symmetric, so it is symmetric in the
+    inner product weighted by the degrees, and pure diffusion conserves sum_i deg_i u_i;
+    its eigenvalues lie in [-2, 0]."""
+    f = np.asarray(faces, np.int64)
+    edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    rows = np.concatenate([edges[:, 0], edges[:, 1]])
+    cols = np.concatenate([edges[:, 1], edges[:, 0]])
+    degree = np.bincount(rows, minlength=n).astype(np.float64)
+    return rows, cols, np.ones(len(rows)), degree
