@@ -77,6 +77,26 @@ def test_lundelius_kernel_and_start():
     np.testing.assert_array_equal(np.asarray(state.array("u")), np.ones_like(b))
 
 
+def test_lundelius_umbrella_mesh_keeps_sims_rates_and_forms_a_pattern():
+    """Paper 004 on a mesh with its equally weighted Laplacian: Sims's rates unscaled (his
+    kernel is also a mean of the neighbours less the centre), dt 1 within the umbrella
+    operator's limit, an icosphere whose edges are about 1 (the seeded discs' unit), and a
+    quick run that stays finite and forms a pattern from the discs."""
+    exp = mj.preset("lundelius-fig4-umbrella", quick=True)
+    (run,) = exp.phases
+    mesh = run.domain
+    assert isinstance(mesh, mj.Mesh) and mesh.operator == "umbrella"
+    assert (float(run.model.du), float(run.model.dv)) == (1.0, 0.5) and run.dt == 1.0
+    assert run.dt <= mesh.max_stable_dt(1.0) and 1.4 < mesh.rho < 1.6
+    v = np.asarray(mesh.vertices, np.float64)
+    edges = np.linalg.norm(v[mesh.faces[:, 0]] - v[mesh.faces[:, 1]], axis=1)
+    assert 0.8 < edges.mean() < 1.2
+    b = mj.run_experiment(exp, seed=0).state.array("v")
+    assert np.isfinite(b).all() and 0.0 <= b.min() and b.max() < 1.0
+    assert 0.2 < (b > 0.1).mean() < 0.8  # spread over the sphere from 12 discs, not uniform
+    assert mj.PRESETS["lundelius-fig4-umbrella"].experiment().phases[0].domain.n_vertices == 10242
+
+
 def test_listing_5_1_series_keep_the_thesis_time_steps():
     """Figs. 5.6 and 5.9 lower dt where the rates are large (0.8 and 0.6; 0.4 and 0.2), as the
     thesis does, and every member keeps the eight-neighbour sum's limit; Fig. 5.8's map

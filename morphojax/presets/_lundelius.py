@@ -10,6 +10,18 @@ some cells at 1; the paper does not say which, so B starts at 1 on 12 squares of
 cells at places drawn once (NumPy's generator, seed 0), the same for every run. Six images 750 iterations apart (Fig. 3: f = 0.055, k = 0.064; Figs. 1 and 2
 print no f and k).
 
+On meshes (Fig. 4: icospheres, tori, a bust) the paper's Laplacian is either PyMesh's
+Laplace-Beltrami operator or "an equally weighted" one, the mean of the edge neighbours'
+values less the vertex's own: `Mesh(..., operator="umbrella")`. Sims's kernel is the same
+kind of operator on the grid (a weighted mean of the 8 neighbours less the centre), so his
+rates D_A 1.0, D_B 0.5 and dt 1 carry over to it unscaled; on an icosphere its spectral
+radius is about 1.5, so dt D_A rho = 1.5 keeps forward Euler stable, where the paper's runs
+"oscillate greatly" and overflow. `lundelius-fig4-umbrella` runs Fig. 3's f and k so on an
+icosphere of 10,242 vertices (edge about 1). It starts as the other mesh presets do,
+(A, B) = (0.5, 0.25) on 12 discs of radius 4 edges (`seed_patches`) and (1, 0) elsewhere,
+with noise of the run's seed: limits per vertex, which the grid's seeding phase uses to
+set B = 1, are lattice maps only.
+
 The start is two phases: one step whose lower limit on B is the seeded square (B = 1
 there after it; A = 1, B = 0 is a steady state, so the step changes nothing else), then
 the run. At f 0.055, k 0.064 a single seeded square only grows into a ring in 4500
@@ -21,8 +33,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._experiment import Experiment, Initial, Phase
-from ..domains import Lattice
+from ..domains import Lattice, Mesh
 from ..models import GrayScott
+from ._meshes import seed_patches
 from ._registry import ExperimentPreset, register
 
 SIMS_SCALE = 0.3  # Sims's kernel = 0.3 x the nine-point stencil
@@ -62,3 +75,22 @@ def _fig3(quick):
 register(ExperimentPreset("lundelius-fig3", "paper 004's own grid: Gray-Scott (f 0.055, k 0.064) with Sims's kernel "
                           "(0.3 x the nine-point stencil) from B = 1 on a few squares of a 100x100 grid",
                           "paper 004 Fig. 3", _fig3))
+
+
+def _fig4_umbrella(quick):
+    mesh = Mesh.icosphere(3, 6.5, operator="umbrella") if quick else Mesh.icosphere(5, 26.0, operator="umbrella")
+    steps = 1500 if quick else IMAGES * EVERY
+    feed, kill = FIG3
+    model = GrayScott(feed=feed, kill=kill, du=SIMS_RATES[0], dv=SIMS_RATES[1])
+    return Experiment(
+        name="lundelius-fig4-umbrella",
+        initial=Initial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)), names=("u", "v")),
+        phases=(Phase(model, steps=steps, dt=1.0, frames=IMAGES, name="gray-scott", domain=mesh),),
+        description=f"paper 004 Fig. 4 (icosphere) with its equally weighted Laplacian: Gray-Scott f {feed}, k {kill}, "
+                    f"D_A 1.0, D_B 0.5 on the umbrella operator of an icosphere of {mesh.n_vertices} vertices, A = 1 "
+                    f"and B = 0 but (0.5, 0.25) on 12 discs of radius 4 edges, dt 1, {steps:,} iterations",
+        figure="paper 004 Fig. 4 (umbrella Laplacian)", show="v", cmap="gray")
+
+
+register(ExperimentPreset("lundelius-fig4-umbrella", "paper 004's mesh setting: Gray-Scott (f 0.055, k 0.064) with "
+                          "its equally weighted (umbrella) Laplacian on an icosphere", "paper 004 Fig. 4", _fig4_umbrella))
