@@ -121,7 +121,8 @@ class CellPreset(AutomatonPreset):
     """A thesis experiment on cells: `listing` (a shipped name, or the name of `text`, a
     listing printed in the thesis's text rather than its appendix), the iterations shown
     (`snapshots`, default the listing's snaps or its end), `quick` iterations, the picture
-    (`texture` or discs) and an `edit` of the listing's text (see the module's notes)."""
+    (`texture` or discs, through `cmap` where the listing names no colour map) and an `edit`
+    of the listing's text (see the module's notes)."""
 
     kind: ClassVar[str] = "cells"
     listing: str = ""
@@ -130,6 +131,7 @@ class CellPreset(AutomatonPreset):
     texture: bool = False
     edit: Callable[[str], str] | None = dataclasses.field(default=None, repr=False)
     text: str = dataclasses.field(default="", repr=False)
+    cmap: str = "inferno"
 
     def load(self):
         """The listing as this preset runs it (after its edit)."""
@@ -149,19 +151,19 @@ def _run_cells(item: CellPreset, seed: int, quick: bool, out: Path, frames: bool
     t0 = time.perf_counter()
     cells = listing.snapshots(shots, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
-    files = write_outputs(listing, cells, shots, out, texture=item.texture, size=360,
+    files = write_outputs(listing, cells, shots, out, texture=item.texture, size=360, cmap=item.cmap,
                           metadata={"preset": item.name, "seed": seed, "iterations": list(shots), "quick": quick})
     return {"listing": listing.name, "iterations": list(shots), "cells": [int(c.count) for c in cells],
             "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
 
 
 def write_outputs(listing, cells, iterations, out: Path, *, texture: bool, reagent=None, size=512,
-                  metadata: dict) -> tuple[Path, Path, Path]:
+                  metadata: dict, cmap="inferno") -> tuple[Path, Path, Path]:
     """A listing's run as files: the PNG `out` (the cells through the listing's colour map,
-    as discs of `size` pixels or the texture of its `texture size`; a row of them for
+    or `cmap` where it names none, as discs of `size` pixels or the texture of its `texture size`; a row of them for
     several snapshots), `out.npz` (the last cells with the listing's text and `metadata`)
     and `out.svg`. Shared by the presets and `morphojax listing`."""
-    cmap = listing.colormap or "inferno"
+    cmap = listing.colormap or cmap
     if texture:
         tiles = [mj.cells_texture(c, reagent, size=listing.texture or size, cmap=cmap, method="natural") for c in cells]
     else:
@@ -182,12 +184,13 @@ def _listing_shots(listing) -> tuple:
     return tuple(snaps) if len(snaps) > 1 else (listing.steps,)
 
 
-def _cells(name, listing, figure, description, *, quick, snapshots=(), texture=False, edit=None, text=""):
+def _cells(name, listing, figure, description, *, quick, snapshots=(), texture=False, edit=None, text="",
+           cmap="inferno"):
     def build(seed, quick_, out, frames):
         return _run_cells(item, seed, quick_, out, frames)
 
     item = CellPreset(name, description, figure, build, listing=listing, snapshots=tuple(snapshots),
-                      quick=tuple(quick), texture=texture, edit=edit, text=text)
+                      quick=tuple(quick), texture=texture, edit=edit, text=text, cmap=cmap)
     register(item)
 
 
@@ -241,7 +244,7 @@ _cells("thesis-fig6.10", "A.11", "thesis Fig. 6.10 (Listing A.11)",
        "uniform growth with reinforcement of a copied pattern R", quick=(0, 300))
 _cells("thesis-fig7.1-cells", "fig7.1", "thesis Fig. 7.1 (listing of section 7.1)",
        "the Game of Life (B3/S23) by rules on a 25x25 grid of cells: a glider, 80 generations in 160 iterations",
-       snapshots=(0, 160), quick=(0, 16), text=FIG7_1_LISTING)
+       snapshots=(0, 160), quick=(0, 16), text=FIG7_1_LISTING, cmap="viridis")  # dead cells seen
 _cells("thesis-fig7.2-cells", "A.12", "thesis Fig. 7.2 (Listing A.12)",
        "Wireworld from three reagents and a clock of three iterations", snapshots=(0, 6, 12, 18, 24, 72),
        quick=(0, 6, 12))
