@@ -81,6 +81,24 @@ def test_spine_series_are_rows_of_snapshots(name, tmp_path):
     assert row.width >= 3 * one.width  # three tiles side by side
 
 
+def test_a_series_of_a_growing_tissue_is_drawn_at_one_scale():
+    """Fig. 6.4's rows: every snapshot at the scale of the box that holds them all, placed
+    where its cells lie, so a row of 3 cells keeps its size and place beside a block."""
+    from morphojax.presets._cells import _at_one_scale
+
+    row = mj.cells_at(np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]]), ("R",), concentration=1.0)
+    block = mj.cells_at(np.array([[x, y] for x in range(-10, 15, 2) for y in range(-6, 7, 2)], float), ("R",),
+                        concentration=1.0)
+    tiles = _at_one_scale([row, block], None, 280, "inferno")
+    assert [t.size for t in tiles] == [(280, 160), (280, 160)]  # the union box, x -12..16, y -8..8
+    scale = 280 / 28
+    for tile, (x0, x1, y0, y1) in zip(tiles, [(-1, 5, -1, 1), (-11, 15, -7, 7)]):  # the discs' extents
+        ys, xs = np.nonzero(np.asarray(tile).sum(2))
+        assert abs(xs.min() - (x0 + 12) * scale) <= 1 and abs(xs.max() + 1 - (x1 + 12) * scale) <= 1
+        assert abs(ys.min() - (8 - y1) * scale) <= 1 and abs(ys.max() + 1 - (8 - y0) * scale) <= 1
+    assert all(mj.PRESETS[n].one_scale for n in ("thesis-fig6.4-series", "thesis-fig6.4-anisotropic"))
+
+
 def test_directed_division_turns_every_child_ten_degrees(tmp_path):
     """Fig. 6.5 (b): the first cell's polarity is 0 and each child is turned exactly 10
     degrees from its parent, so every polarity is a multiple of 10 degrees; the random run

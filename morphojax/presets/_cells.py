@@ -41,6 +41,8 @@ import time
 from pathlib import Path
 from typing import Callable, ClassVar
 
+import numpy as np
+
 import morphojax as mj
 from ..cells import load_listing, save_cells, write_cells_svg
 from ..cells._listing import listing_path
@@ -121,8 +123,9 @@ class CellPreset(AutomatonPreset):
     """A thesis experiment on cells: `listing` (a shipped name, or the name of `text`, a
     listing printed in the thesis's text rather than its appendix), the iterations shown
     (`snapshots`, default the listing's snaps or its end), `quick` iterations, the picture
-    (`texture` or discs, through `cmap` where the listing names no colour map) and an `edit`
-    of the listing's text (see the module's notes)."""
+    (`texture` or discs, through `cmap` where the listing names no colour map; a series of a
+    growing tissue at `one_scale`) and an `edit` of the listing's text (see the module's
+    notes)."""
 
     kind: ClassVar[str] = "cells"
     listing: str = ""
@@ -132,6 +135,7 @@ class CellPreset(AutomatonPreset):
     edit: Callable[[str], str] | None = dataclasses.field(default=None, repr=False)
     text: str = dataclasses.field(default="", repr=False)
     cmap: str = "inferno"
+    one_scale: bool = False
 
     def load(self):
         """The listing as this preset runs it (after its edit)."""
@@ -152,20 +156,26 @@ def _run_cells(item: CellPreset, seed: int, quick: bool, out: Path, frames: bool
     cells = listing.snapshots(shots, seed=seed, progress=True)
     seconds = time.perf_counter() - t0
     files = write_outputs(listing, cells, shots, out, texture=item.texture, size=360, cmap=item.cmap,
-                          metadata={"preset": item.name, "seed": seed, "iterations": list(shots), "quick": quick})
+                          one_scale=item.one_scale, metadata={"preset": item.name, "seed": seed, "iterations": list(shots), "quick": quick})
     return {"listing": listing.name, "iterations": list(shots), "cells": [int(c.count) for c in cells],
             "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
 
 
 def write_outputs(listing, cells, iterations, out: Path, *, texture: bool, reagent=None, size=512,
-                  metadata: dict, cmap="inferno") -> tuple[Path, Path, Path]:
+                  metadata: dict, cmap="inferno", one_scale: bool = False) -> tuple[Path, Path, Path]:
     """A listing's run as files: the PNG `out` (the cells through the listing's colour map,
-    or `cmap` where it names none, as discs of `size` pixels or the texture of its `texture size`; a row of them for
-    several snapshots), `out.npz` (the last cells with the listing's text and `metadata`)
-    and `out.svg`. Shared by the presets and `morphojax listing`."""
+    or `cmap` where it names none, as discs of `size` pixels or the texture of its `texture
+    size`; a row of them for several snapshots, each fitted to its own cells, or with
+    `one_scale` all drawn at one scale in the box that holds them all), `out.npz` (the last
+    cells with the listing's text and `metadata`) and `out.svg`. Shared by the presets and
+    `morphojax listing`."""
     cmap = listing.colormap or cmap
+    if texture and one_scale:
+        raise ValueError("write_outputs: one_scale draws discs; a texture is fitted to each snapshot's cells")
     if texture:
         tiles = [mj.cells_texture(c, reagent, size=listing.texture or size, cmap=cmap, method="natural") for c in cells]
+    elif one_scale:
+        tiles = _at_one_scale(cells, reagent, size, cmap)
     else:
         tiles = [mj.render_cells(c, reagent, size=size, cmap=cmap) for c in cells]
     picture = tiles[0] if len(tiles) == 1 else mj.montage(tiles, len(tiles),
@@ -179,18 +189,42 @@ def write_outputs(listing, cells, iterations, out: Path, *, texture: bool, reage
     return out, npz, svg
 
 
+def _at_one_scale(cells, reagent, size: int, cmap) -> list:
+    """Discs of every snapshot at one scale: the box holding every snapshot's cells (with
+    `render_cells`' default border of one radius and one more) fills `size` pixels on its
+    longer side, and each snapshot, drawn into its own box at that scale, is placed where
+    its box lies in it, so a growing tissue is seen growing."""
+    from PIL import Image
+
+    pad = 2.0  # render_cells: the cell radius 1 and its default margin 1
+    boxes = [(p.min(0) - pad, p.max(0) + pad) for p in (np.asarray(c.live()["position"], np.float64) for c in cells)]
+    low = np.min([b[0] for b in boxes], axis=0)
+    high = np.max([b[1] for b in boxes], axis=0)
+    scale = size / float(np.max(high - low))
+    width, height = (max(1, int(round(float(x)))) for x in (high - low) * scale)
+    tiles = []
+    for c, (lo, hi) in zip(cells, boxes):
+        tile = mj.render_cells(c, reagent, size=tuple(max(1, int(round(float(x)))) for x in (hi - lo) * scale),
+                               cmap=cmap)
+        canvas = Image.new("RGB", (width, height), "black")
+        canvas.paste(tile, (int(round(float(lo[0] - low[0]) * scale)), int(round(float(high[1] - hi[1]) * scale))))
+        tiles.append(canvas)
+    return tiles
+
+
 def _listing_shots(listing) -> tuple:
     snaps = sorted({i for s in listing.snaps for i in s.iterations if i <= (listing.steps or i)})
     return tuple(snaps) if len(snaps) > 1 else (listing.steps,)
 
 
 def _cells(name, listing, figure, description, *, quick, snapshots=(), texture=False, edit=None, text="",
-           cmap="inferno"):
+           cmap="inferno", one_scale=False):
     def build(seed, quick_, out, frames):
         return _run_cells(item, seed, quick_, out, frames)
 
     item = CellPreset(name, description, figure, build, listing=listing, snapshots=tuple(snapshots),
-                      quick=tuple(quick), texture=texture, edit=edit, text=text, cmap=cmap)
+                      quick=tuple(quick), texture=texture, edit=edit, text=text, cmap=cmap,
+                      one_scale=one_scale)
     register(item)
 
 
@@ -223,10 +257,10 @@ _cells("thesis-fig6.4", "A.6", "thesis Fig. 6.4 (Listing A.6)",
        "growth from a fixed spine of 40 cells, division limit 8", quick=(1500,))
 _cells("thesis-fig6.4-series", "A.6", "thesis Fig. 6.4, top row (Listing A.6)",
        "growth from a fixed spine, isotropic: iterations 0, 4000, 8000, 12000 and 16000 (the listing's "
-       "commented snap)", snapshots=FIG6_4_SERIES, quick=(0, 200, 400))
+       "commented snap)", snapshots=FIG6_4_SERIES, quick=(0, 200, 400), one_scale=True)
 _cells("thesis-fig6.4-anisotropic", "A.6", "thesis Fig. 6.4, bottom row (Listing A.6, V anisotropic)",
        "growth from a fixed spine with V anisotropic: stripes more uniformly oriented, iterations 0 to 16000",
-       snapshots=FIG6_4_SERIES, quick=(0, 200, 400),
+       snapshots=FIG6_4_SERIES, quick=(0, 200, 400), one_scale=True,
        edit=_replace(("define chemical V //anisotropic", "define chemical V anisotropic")))
 _cells("thesis-fig6.5", "A.7", "thesis Fig. 6.5 (Listing A.7)",
        "growth on borders: cells with 3 or fewer neighbours divide, from one cell", quick=(1500,))
