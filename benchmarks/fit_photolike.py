@@ -18,7 +18,9 @@ Protocol (fixed before any tuning of the fit against this suite):
   each fitted parameter's relative error where it is (for `angle`: the difference modulo
   pi, in radians); the fitted coat's dominant wavelength against the clean coat's, both on
   the fit's lattice (the clean coat's wavelength in cells x PHOTO_PIXELS / the target's
-  cell_pixels); the fit's verdict (`convincing`, `heldout`) and its time.
+  cell_pixels); the fit's verdict (`convincing`, `heldout`) and its time. Added after the
+  first report (diagnostics, not goals): the wavelength the fit measured on the part of the
+  photo it sees, and whether the fit moved to it after its local search (`fitting._scale`).
 - Goals (stated in the table): the right family on at least 80% of the fits, the wavelength
   within 10% on at least 90%.
 
@@ -331,7 +333,9 @@ def fit_one(name: str, which: str, seed: int, wavelength: float, photo: np.ndarr
             "cell_pixels": target.cell_pixels, "scale_error": target.cell_pixels / (wavelength * PHOTO_PIXELS / 10) - 1,
             "expected_wavelength": expected, "fitted_wavelength": fitted, "wavelength_error": fitted / expected - 1,
             "convincing": getattr(result, "convincing", None), "heldout": getattr(result, "heldout", {}) or {},
-            "rejected": getattr(result, "rejected", None), "seconds": seconds, "load": os.getloadavg()[0]}
+            "training_wavelength": float(np.ravel((result.stats or {}).get("target", {}).get("wavelength", [np.nan]))[0]),
+            "rejected": getattr(result, "rejected", None), "scale_snap": (result.config or {}).get("scale_snap"),
+            "seconds": seconds, "load": os.getloadavg()[0]}
 
 
 def close(row) -> bool:
@@ -346,7 +350,7 @@ def table_row(r) -> str:
                 f"{r['seconds']:.0f} |")
     fam = r["fitted_family"] if r["right"] else f"**WRONG: {r['fitted_family']}**"
     errors = ", ".join(f"{k} {v:.0%}" if k != "angle" else f"{k} {v:.2f} rad" for k, v in r["errors"].items())
-    lam = f"{r['expected_wavelength']:.1f} / {r['fitted_wavelength']:.1f} "
+    lam = f"{r['expected_wavelength']:.1f} / {r.get('training_wavelength', float('nan')):.1f} / {r['fitted_wavelength']:.1f} "
     lam += f"({r['wavelength_error']:+.0%})" if close(r) else f"(**off {r['wavelength_error']:+.0%}**)"
     held = " / ".join(f"{r['heldout'][k]:.3g}" if k in r["heldout"] else "-" for k in ("distance", "floor", "noise"))
     convincing = "-" if r["convincing"] is None else "yes" if r["convincing"] else "no"
@@ -368,6 +372,8 @@ def table(rows, model: str, shape) -> str:
         "",
         f"- right family: {right}/{n} = {right / max(n, 1):.0%} ({'met' if right >= 0.8 * n else 'NOT MET'})",
         f"- wavelength within 10%: {near}/{n} = {near / max(n, 1):.0%} ({'met' if near >= 0.9 * n else 'NOT MET'})",
+        f"- moved to the target's wavelength after the local search (`fitting._scale`): "
+        f"{sum(bool((r.get('scale_snap') or {}).get('moved')) for r in rows)}/{n}",
         "", "| degradation | right family | wavelength within 10% | convincing |", "|---|---|---|---|"]
     for which in CHOICES:
         sub = [r for r in rows if r["degradation"] == which]
@@ -376,9 +382,10 @@ def table(rows, model: str, shape) -> str:
                          f"{len(sub)} | {sum(bool(r.get('convincing')) for r in sub)}/{len(sub)} |")
     lines += ["", "Parameter errors are relative (angle: radians, modulo pi); px per cell: the scale `load_target` "
                   "estimated, and its error against the clean coat's (its wavelength over 10 cells); wavelengths in "
-                  "cells of the fit's lattice; held-out: distance / floor / noise.", "",
+                  "cells of the fit's lattice: the clean coat's, the one the fit measured on the part of the photo it "
+                  "sees (`fitting._verdict.target_wavelength`), the fitted coat's; held-out: distance / floor / noise.", "",
               "| case | degradation | family | fitted family | parameter errors | px per cell (scale error) "
-              "| wavelength expected / fitted | convincing | held-out | time (s) |",
+              "| wavelength expected / training part / fitted | convincing | held-out | time (s) |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     return "\n".join(lines + [table_row(r) for r in rows]) + "\n"
 

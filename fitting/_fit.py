@@ -18,9 +18,11 @@
    Nelder-Mead without gradients, or plain gradient descent), with gradients through the
    simulation's last `window` steps (checkpointed, so memory does not grow with steps).
    When gradients do not help (no improvement), Nelder-Mead takes over from the same start.
-5. The best point is re-simulated for the report: statistics of target and fit, the noise
-   floor (the distance expected between the target and the fit if the target were a sample
-   of the fitted model), region statistics, timings and the loss history.
+5. The best point is moved to the target's wavelength where the likelihood cannot tell the
+   two apart (`fitting._scale.snap_to_wavelength`), then re-simulated for the report:
+   statistics of target and fit, the noise floor (the distance expected between the target
+   and the fit if the target were a sample of the fitted model), region statistics, timings
+   and the loss history.
 """
 
 from __future__ import annotations
@@ -35,11 +37,12 @@ import numpy as np
 
 import morphojax as mj
 
+from ._result import FitResult
+from ._scale import moved_length, snap_threshold, snap_to_wavelength
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
 from ._stats import distance, mean_stats, noise_of, residuals, texture_stats
-from ._result import FitResult
-from ._verdict import off_scale, target_wavelength
+from ._verdict import off_scale, target_wavelength, wavelength_of
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 LIMIT_SCAN = 48  # points of a fitted limit's scan, about 2% of its bounds apart
@@ -52,7 +55,9 @@ def _as_template(model, shape):
         try:
             return mj.model_from_name(model)
         except ValueError:  # the message names every name a fit takes, families and models alike
-            from ._families import FAMILIES  # _families builds on the core only; imported late as in _resolve
+            from ._families import (
+                FAMILIES,  # _families builds on the core only; imported late as in _resolve
+            )
 
             others = [n for n in mj.models.MODELS if n not in FAMILIES]
             raise ValueError(f"unknown model {model!r}; a fit takes a family ({', '.join(FAMILIES)}), 'auto', "
@@ -282,10 +287,8 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         if move and (length is not None or angle is not None):
             moved = thetas.copy()
             if length is not None:
-                factor = (float(tstats["wavelength"]) / np.where(np.isfinite(lams) & (lams > 0), lams, np.nan)) ** (
-                    1.0 / length_power)
-                moved[:, length] = np.clip(np.nan_to_num(thetas[:, length] * factor, nan=thetas[:, length]),
-                                           space.low[length], space.high[length])
+                moved[:, length] = moved_length(thetas[:, length], lams, float(tstats["wavelength"]), length_power,
+                                                space.low[length], space.high[length])
             if angle is not None:  # the direction modulo pi, inside the angle's bounds
                 low = space.low[angle]
                 moved[:, angle] = np.clip(low + (stripes - low) % np.pi, low, space.high[angle])
@@ -394,15 +397,45 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     best_loss, z_best, used, _ = finals[0]
     theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
-    fit_stats = _mean_at(sim, space, stats, theta_best, keys)
+    floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
+
+    def floor_at(theta):
+        """(mean statistics, single samples' losses against them, the samples) at theta."""
+        fit_stats = _mean_at(sim, space, stats, theta, keys)
+        singles, samples = _seed_run(sim, space, stats, theta, floor_keys)
+        losses = np.array([float(distance({k: v[i] for k, v in singles.items()}, fit_stats, stats, noise))
+                           for i in range(len(floor_keys))])
+        return fit_stats, losses, samples
+
+    fit_stats, floor_losses, samples = floor_at(theta_best)
     if not np.isfinite(best_loss):
         best_loss = float(distance(fit_stats, tstats, stats, noise))
         finals[0] = (best_loss, *finals[0][1:3], best_loss)
-    floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
-    singles, samples = _seed_run(sim, space, stats, theta_best, floor_keys)
-    floor_losses = np.array([float(distance(jax.tree_util.tree_map(lambda v: v[i], singles), fit_stats, stats,
-                                            noise)) for i in range(len(floor_keys))])
     floor = float(np.mean(floor_losses))
+    snap = None
+    if length is not None:  # the target's scale, where the likelihood cannot tell (`fitting._scale`)
+        rec.stage = "scale"
+
+        def loss_and_scale(theta):
+            """(loss, wavelength) at theta: the loss as the local stage measures it, the
+            wavelength as the verdict does (the median over seeds of each sample's peak)."""
+            per_seed, fields = _seed_run(sim, space, stats, jnp.asarray(theta, jnp.float32), keys)
+            mean = jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
+            return (float(distance(mean, tstats, stats, noise)),
+                    float(np.nanmedian([wavelength_of(f) for f in np.asarray(fields)])))
+
+        snap_loss, snap_wavelength = loss_and_scale(theta_best)
+        threshold = snap_threshold(seeds, best_loss / floor if floor > 0 else 1.0)
+        snap = snap_to_wavelength(
+            np.asarray(theta_best, np.float64), snap_loss, snap_wavelength, loss_and_scale,
+            target_wavelength=float(tstats["wavelength"]), index=length, power=length_power,
+            low=float(space.low[length]), high=float(space.high[length]), threshold=threshold)
+        if snap["moved"]:
+            theta_best = jnp.asarray(snap["theta"], jnp.float32)
+            params = {n: float(theta_best[j]) for j, n in enumerate(names)}
+            best_loss, used = snap["loss"], f"{used} + scale"
+            fit_stats, floor_losses, samples = floor_at(theta_best)
+            floor = float(np.mean(floor_losses))
     samples = np.asarray(samples)
     sample = samples[0]
     from ._report import region_stats
@@ -426,6 +459,10 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
               "method": used, "requested_method": method, "seeds": seeds, "design_seeds": len(design_keys),
               "seed": seed, "design": design, "n_design": n_design, "rounds": rounds, "keep": keep,
               "max_steps": max_steps,
+              "scale_snap": None if snap is None else {
+                  "moved": snap["moved"], "start_wavelength": snap_wavelength, "wavelength": snap["wavelength"],
+                  "target_wavelength": float(tstats["wavelength"]), "start_loss": snap_loss,
+                  "threshold": threshold, "tried": snap["tried"]},
               "simulator": sim.describe(), "stats": dataclasses.asdict(stats), "starts": [
                   {"start_loss": f[3], "final_loss": f[0], "method": f[2],
                    "params": {n: float(v) for n, v in zip(names, np.asarray(space.from_free(jnp.asarray(f[1]))))}}

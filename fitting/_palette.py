@@ -13,7 +13,10 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
-from morphojax import kmeans, photo_palette  # the clustering shared with `mj.Gradient.from_photo`
+from morphojax import (  # the clustering shared with `mj.Gradient.from_photo`
+    kmeans,
+    photo_palette,
+)
 
 __all__ = ["GREY", "colourise", "kmeans", "photo_palette", "render_coat"]
 
@@ -48,6 +51,7 @@ def render_coat(result, size=512, palette="photo", seed: int = 0) -> Image.Image
     import dataclasses
 
     import jax
+
     import morphojax as mj
 
 

@@ -238,6 +238,10 @@ def test_fit_recovers_a_synthetic_target(small_fit):
     assert result.rejected is None and result.convincing, result.verdict
     assert np.asarray(result.fields["samples"]).shape[1:] == (32, 32)
     assert set(result.timings) >= {"design", "noise", "local", "report", "total"}
+    snap = result.config["scale_snap"]  # the move to the target's scale (fitting._scale), recorded
+    assert set(snap) == {"moved", "start_wavelength", "wavelength", "target_wavelength", "start_loss", "threshold",
+                         "tried"}
+    assert abs(snap["wavelength"] / snap["target_wavelength"] - 1) <= 0.2
     assert result.history and result.history[0]["stage"] == "design"
     data = result.to_json()
     assert set(data["params"]) == {"ratio", "scale"}
