@@ -222,8 +222,14 @@ def test_cells_files_without_a_neighbour_list_still_load_and_resume(mixed, tmp_p
         arrays = {k: data[k] for k in data.files}
     meta = json.loads(str(arrays["metadata"]))
     assert meta["neighbour_list"]["built_count"] == int(half.count)
+    assert meta["format"] == "morphojax-cells/2"  # with a list: a reader of /1 only refuses it by its format
     old = {k: v for k, v in arrays.items() if not k.startswith("neighbour_")}
     meta.pop("neighbour_list")
+    np.savez_compressed(tmp_path / "future.npz", **{**old, "metadata": np.asarray(json.dumps(
+        {**meta, "format": "morphojax-cells/9"}))})
+    with pytest.raises(ValueError, match=r"future\.npz.*'morphojax-cells/9'"):
+        mj.load_cells(tmp_path / "future.npz")
+    meta["format"] = "morphojax-cells/1"
     np.savez_compressed(tmp_path / "old.npz", **{**old, "metadata": np.asarray(json.dumps(meta))})
     back, _ = mj.load_cells(tmp_path / "old.npz")
     assert back.neighbours is None

@@ -5,9 +5,10 @@ limits and anisotropy, the iteration count and the run's status, with JSON metad
 The neighbour list the cells carry is part of the run's state and is saved too (its live
 rows, `neighbour_index` with -1 for an empty slot and `neighbour_reference`, and the
 metadata entry `neighbour_list`), so a run resumed from the file goes on bit for bit as
-the uninterrupted one. The format stays "morphojax-cells/1": files without a list (those
-written before it was saved, or of cells no run produced) load as before, and a resumed
-run builds its list afresh.
+the uninterrupted one. Files with a list are format "morphojax-cells/2" (a morphojax that
+reads only /1 refuses them by their format instead of failing on an unknown array); /1
+files, without a list (those written before it was saved), load as before, and a run
+resumed from one builds its list afresh.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from .._files import read_npz, write_npz
 from ._neighbours import NeighbourList
 from ._state import STATUS_FIELDS, Cells, make_cells
 
-FORMAT = "morphojax-cells/1"
+FORMAT = "morphojax-cells/2"
+READABLE = ("morphojax-cells/1", FORMAT)  # /1: no saved neighbour list
 LIST_ARRAYS = ("neighbour_index", "neighbour_reference")  # the saved neighbour list's live rows
 LIST_META = "neighbour_list"  # its metadata: the search that keeps it and its counters
 
@@ -74,8 +76,8 @@ def load_cells(path) -> tuple[Cells, dict]:
     """(cells, metadata) from a file written by `save_cells` (a run can resume from it)."""
 
     def parse(meta, data):
-        if meta.get("format") != FORMAT:
-            raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
+        if meta.get("format") not in READABLE:
+            raise ValueError(f"format {meta.get('format')!r}, expected one of {', '.join(map(repr, READABLE))}")
         return {name: np.asarray(data[name]) for name in data.files if name != "metadata"}
 
     meta, arrays = read_npz(path, "cells", parse)

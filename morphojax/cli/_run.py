@@ -423,7 +423,7 @@ def file_kind(path: Path) -> str:
     with open_npz(path, ".npz") as data:
         names = set(data.files)
         meta = read_metadata(data, path) if "metadata" in names else {}
-    if meta.get("format") == "morphojax-cells/1":
+    if str(meta.get("format", "")).startswith("morphojax-cells/"):
         return "cells"
     if meta.get("kind") == "solid" and "v" in names:
         return "solid"
