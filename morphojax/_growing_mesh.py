@@ -130,6 +130,9 @@ class MeshGrowth(eqx.Module):
         if mesh.directional is not None:
             raise ValueError("MeshGrowth: an anisotropic mesh (direction=) cannot grow: its direction field is not "
                              "defined on new vertices")
+        if mesh.operator != "cotangent":  # the geometry rebuilds the cotangent operator at each event
+            raise ValueError(f"MeshGrowth grows meshes with the cotangent operator (got operator={mesh.operator!r}): "
+                             "its rebuilt operator would silently change the model")
         if capacity < mesh.n_vertices:
             raise ValueError(f"MeshGrowth: the vertex capacity {capacity} is below the mesh's {mesh.n_vertices} "
                              "vertices")

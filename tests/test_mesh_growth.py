@@ -114,6 +114,8 @@ def test_bad_growth_is_refused():
         mj.MeshGrowth(0.1, field=np.ones(5)).grown(_mesh(), 10, DT)
     with pytest.raises(ValueError, match="anisotropic"):
         mj.MeshGrowth(0.1).grown(mj.Mesh.icosphere(1, direction=(1.0, 0.0, 0.0), along=0.5), 10, DT)
+    with pytest.raises(ValueError, match="operator='umbrella'"):  # growth rebuilds the cotangent operator
+        mj.MeshGrowth(0.1).grown(mj.Mesh.icosphere(1, operator="umbrella"), 10, DT)
 
 
 # ---- runs ----------------------------------------------------------------------------------------
