@@ -361,6 +361,20 @@ def test_cli_mesh_and_preset_picture(tmp_path):
     v, f, c = read_ply(out, colours=True)
     assert len(v) == ball.n_vertices and c is not None and (tmp_path / "ball.png").exists()
     assert main(["mesh", str(src), "--dt", "100", "--steps", "5", "--out", str(out), "--quiet"]) == 2  # refused
+    # --operator umbrella runs the API's umbrella mesh: the same values, vertex for vertex
+    assert main(["mesh", str(src), "--operator", "umbrella", "--steps", "20", "--dt", "0.5", "--out", str(out),
+                 "--quiet"]) == 0
+    with np.load(out.with_suffix(".npz")) as data:
+        got = np.asarray(data["species_v"])
+        assert json.loads(str(data["metadata"]))["operator"] == "umbrella"
+    umbrella = mj.Mesh.from_file(src)
+    umbrella = mj.Mesh(umbrella.vertices, umbrella.faces, operator="umbrella")
+    model = mj.GrayScott()
+    from morphojax.cli._mesh import mesh_state
+
+    want = mj.simulate(model, mesh_state(model, umbrella, jax.random.key(0)), 20, 0.5, domain=umbrella).array("v")
+    assert np.isfinite(got).all()
+    np.testing.assert_array_equal(got, np.asarray(want))
     exp = mj.preset("mesh-gray-scott-spots-sphere", quick=True)
     state = exp.initial.build(jax.random.key(0))
     assert state.ndim == 1 and state.shape == (exp.phases[0].domain.n_vertices,)

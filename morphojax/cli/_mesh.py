@@ -2,6 +2,7 @@
 
     morphojax mesh bunny.obj --model gray-scott --set feed=0.0545 --set kill=0.062 --steps 10000 --out bunny.ply
     morphojax mesh sphere --model turing --set ratio=12 --set scale=3 --set lower_b=3 --out spots.ply
+    morphojax mesh sphere --operator umbrella --set diffusion_a=1 --set diffusion_b=0.5 --dt 1 --out worms.ply
 
 FILE is an OBJ, PLY, STL or OFF file (PLY read with trimesh, the others by morphojax),
 or one of the primitives "sphere", "torus", "capsule" (sized so an edge is about one
@@ -42,6 +43,9 @@ def register(subparsers) -> None:
     p.add_argument("--steps", type=int, default=10000, help="forward-Euler steps (default 10000)")
     p.add_argument("--dt", type=float, default=None, help=f"time step (default: {DT_SAFETY} x the stable limit, "
                    "at most 1)")
+    p.add_argument("--operator", choices=("cotangent", "umbrella"), default="cotangent",
+                   help="the mesh's Laplacian: cotangent Laplace-Beltrami (default) or the uniform umbrella "
+                        "(Lundelius's equally weighted one)")
     p.add_argument("--scale", type=float, default=1.0,
                    help="multiply the mesh's coordinates by this (diffusion lengths are in mesh units)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same result)")
@@ -58,13 +62,14 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def load_mesh(text: str, scale: float = 1.0) -> mj.Mesh:
-    """A primitive by name or a mesh file, its coordinates times `scale`."""
+def load_mesh(text: str, scale: float = 1.0, operator: str = "cotangent") -> mj.Mesh:
+    """A primitive by name or a mesh file, its coordinates times `scale`, with `operator`."""
     mesh = PRIMITIVES[text]() if text in PRIMITIVES else mj.Mesh.from_file(text)
-    if scale != 1.0:
-        if not (scale > 0 and math.isfinite(scale)):
-            raise ValueError(f"--scale must be a positive number (got {scale})")
-        mesh = mj.Mesh(mesh.vertices * scale, mesh.faces, mesh.mass, uv=mesh.uv, uv_faces=mesh.uv_faces)
+    if not (scale > 0 and math.isfinite(scale)):
+        raise ValueError(f"--scale must be a positive number (got {scale})")
+    if scale != 1.0 or operator != mesh.operator:
+        mesh = mj.Mesh(mesh.vertices * scale, mesh.faces, mesh.mass, uv=mesh.uv, uv_faces=mesh.uv_faces,
+                       operator=operator)
     return mesh
 
 
@@ -96,7 +101,7 @@ def run(args) -> int:
         raise ValueError(f"--steps must lie in [0, {STEP_COUNTER_MAX}] (got {args.steps})")
     check_output_path(out)  # before the run, not after it
     model = mj.model_from_name(args.model, **params)
-    mesh = load_mesh(args.file, args.scale)
+    mesh = load_mesh(args.file, args.scale, args.operator)
     limit = mesh.max_stable_dt(float(model.max_diffusion()))
     dt = args.dt if args.dt is not None else min(1.0, DT_SAFETY * limit)
     state = mesh_state(model, mesh, jax.random.key(args.seed))
@@ -121,8 +126,9 @@ def run(args) -> int:
     mj.mesh_image(mesh, values, cmap=args.cmap, view=tuple(args.view)).save(png)
     npz = out.with_suffix(".npz")
     save_npz(npz, final, {"mesh": str(args.file), "model": mj.model_to_dict(model), "dt": dt, "steps": args.steps,
-                          "seed": args.seed, "scale": args.scale})
-    summary = {"mesh": str(args.file), "vertices": mesh.n_vertices, "model": args.model, "dt": dt,
+                          "seed": args.seed, "scale": args.scale, "operator": args.operator})
+    summary = {"mesh": str(args.file), "vertices": mesh.n_vertices, "operator": args.operator, "model": args.model,
+               "dt": dt,
                "max_stable_dt": limit, "steps": args.steps, "species": species,
                "min": float(np.min(values)), "max": float(np.max(values)),
                "written": [str(p) for p in (*written, png, npz)]}
