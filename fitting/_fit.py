@@ -55,9 +55,8 @@ def _as_template(model, shape):
         try:
             return mj.model_from_name(model)
         except ValueError:  # the message names every name a fit takes, families and models alike
-            from ._families import (
-                FAMILIES,  # _families builds on the core only; imported late as in _resolve
-            )
+            # _families builds on the core only; imported late as in _resolve
+            from ._families import FAMILIES
 
             others = [n for n in mj.models.MODELS if n not in FAMILIES]
             raise ValueError(f"unknown model {model!r}; a fit takes a family ({', '.join(FAMILIES)}), 'auto', "

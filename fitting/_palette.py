@@ -13,10 +13,8 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
-from morphojax import (  # the clustering shared with `mj.Gradient.from_photo`
-    kmeans,
-    photo_palette,
-)
+# the clustering shared with `mj.Gradient.from_photo`
+from morphojax import kmeans, photo_palette
 
 __all__ = ["GREY", "colourise", "kmeans", "photo_palette", "render_coat"]
 
@@ -53,7 +51,6 @@ def render_coat(result, size=512, palette="photo", seed: int = 0) -> Image.Image
     import jax
 
     import morphojax as mj
-
 
     width, height = (size, size) if np.isscalar(size) else (int(size[0]), int(size[1]))
     if palette == "photo":
