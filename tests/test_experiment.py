@@ -111,6 +111,13 @@ def test_frames_follow_the_phases():
     assert res.frames[3][1].shape == (26, 26)  # the development phase's last frame
     final = mj.run_experiment(_two_phase(), seed=3)
     np.testing.assert_array_equal(final.state.arrays()[0], res.state.arrays()[0])  # snapshots change nothing
+    # evenly spaced snapshots come from one rollout per phase: each equals the run stopped
+    # there, also in the growing phase (its lattice 21x21 after 250 of its steps)
+    stopped = mj.run_experiment(_two_phase(), seed=3, stop_after=600 + 250)
+    label, snapshot = res.frames[2]
+    assert label == "development step 250" and snapshot.shape == stopped.state.shape
+    for x, y in zip(snapshot.arrays(), stopped.state.arrays()):
+        np.testing.assert_array_equal(x, y)
 
 
 # ---- the paper's presets, reduced (--quick) ------------------------------------------------
