@@ -26,6 +26,7 @@ from ._checks import check_count, check_range, is_concrete
 from .domains import Lattice, as_domain
 from ._colours import Gradient
 from ._files import dumps, from_jsonable, to_jsonable
+from ._growing_mesh import MeshGrowth
 from ._serialise import (bounds_from_data, bounds_to_data, domain_from_dict, domain_to_dict, growth_from_dict,
                          growth_to_dict, key_from_data, key_to_data, load_npz, model_from_dict, model_to_dict,
                          save_npz, source_from_dict, source_to_dict)
@@ -391,7 +392,8 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
             cuts.add(window_start - steps_before)
         t0 = time.perf_counter()
         simple = (phase_step == 0 and cuts == {phase.steps} | marks and checkpoint_path is None and stop_after is None
-                  and window_start is None and phase.until is None and not getattr(phase.solver, "adaptive", False))
+                  and window_start is None and phase.until is None and not getattr(phase.solver, "adaptive", False)
+                  and not isinstance(phase.growth, MeshGrowth))  # a growing mesh's snapshots differ in shape
         every = _even_spacing(marks, phase.steps) if simple else None
         if every is not None:
             # evenly spaced snapshots and nothing else to stop for: one rollout takes them

@@ -4,6 +4,7 @@ vertices take, the capacity's overflow, and phases that save, resume and draw (f
 Every run here uses one model, one mesh capacity and one event period, so the compiled
 chunk is shared by the module's runs."""
 
+import dataclasses
 import json
 
 import jax
@@ -267,5 +268,10 @@ def test_phase_round_trips_resumes_and_draws(tmp_path):
     np.testing.assert_allclose(np.asarray(resumed.state.fields), np.asarray(whole.state.fields), rtol=0, atol=1e-12)
     grown = exp.final_domain(whole.state)
     assert grown.n_vertices == whole.state.shape[0]
+    # snapshots of a growing mesh differ in shape: taken piece by piece, not by one rollout
+    framed = mj.run_experiment(dataclasses.replace(exp, phases=(dataclasses.replace(phase, frames=5),)), seed=4,
+                               frames=True)
+    assert [s.shape[0] for _, s in framed.frames][-1] == whole.state.shape[0] and len(framed.frames) == 5
+    np.testing.assert_array_equal(np.asarray(framed.state.fields), np.asarray(whole.state.fields))
     picture = whole.image()
     assert picture.size == (384, 384) and len(set(np.asarray(picture).reshape(-1, 3)[:, 0].tolist())) > 10
