@@ -397,11 +397,22 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
     floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
+    runs = {}  # the fit's own seeds' run at a point, done once for the floor and the scale's move
+
+    def run_at(theta):
+        """(mean statistics, fields) of the fit's seeds (`keys`) at theta."""
+        theta = jnp.asarray(theta, jnp.float32)
+        token = np.asarray(theta).tobytes()
+        if token not in runs:
+            per_seed, fields = _seed_run(sim, space, stats, theta, keys)
+            runs[token] = (jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed),
+                           np.asarray(fields))
+        return runs[token]
 
     def floor_at(theta):
         """(mean statistics, single samples' losses against them, the samples) at theta."""
-        fit_stats = _mean_at(sim, space, stats, theta, keys)
-        singles, samples = _seed_run(sim, space, stats, theta, floor_keys)
+        fit_stats = run_at(theta)[0]
+        singles, samples = _seed_run(sim, space, stats, jnp.asarray(theta, jnp.float32), floor_keys)
         losses = np.array([float(distance({k: v[i] for k, v in singles.items()}, fit_stats, stats, noise))
                            for i in range(len(floor_keys))])
         return fit_stats, losses, samples
@@ -418,10 +429,8 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         def loss_and_scale(theta):
             """(loss, wavelength) at theta: the loss as the local stage measures it, the
             wavelength as the verdict does (the median over seeds of each sample's peak)."""
-            per_seed, fields = _seed_run(sim, space, stats, jnp.asarray(theta, jnp.float32), keys)
-            mean = jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
-            return (float(distance(mean, tstats, stats, noise)),
-                    float(np.nanmedian([wavelength_of(f) for f in np.asarray(fields)])))
+            mean, fields = run_at(theta)
+            return float(distance(mean, tstats, stats, noise)), float(np.nanmedian([wavelength_of(f) for f in fields]))
 
         snap_loss, snap_wavelength = loss_and_scale(theta_best)
         threshold = snap_threshold(seeds, best_loss / floor if floor > 0 else 1.0)
