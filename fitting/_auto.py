@@ -77,6 +77,12 @@ def _names_for(fam, names):
     return mine or list(fam.fit)
 
 
+def _fixed_for(fam, fixed) -> dict:
+    """The held parameters (`fixed`, {name: value} or None) that the family has."""
+    known = fam.parameters()
+    return {k: v for k, v in (fixed or {}).items() if k.rpartition(":")[2] in known}
+
+
 def families_for(field, families=None) -> list:
     """The families `auto` screens for a target field: `families` when given (checked),
     else every isotropic family, and the oriented ones when the field's stripe coherence
@@ -116,7 +122,6 @@ def screen(target, names, families, options, score=None, rule: str = "heldout", 
     cfg = options["stats"]
     rows, cols = options["shape"]
     half = (max(24, rows // 2), max(24, cols // 2))
-    fixed = options.get("fixed") or {}
     screened = []
     for f in families:
         fam = FAMILIES[f]
@@ -126,7 +131,7 @@ def screen(target, names, families, options, score=None, rule: str = "heldout", 
         # zebra's stripes below labyrinths on 32x32
         opts = {**options, "shape": tuple(options["shape"]) if fam.oriented else half, "seeds": 2, "rounds": 0,
                 "keep": 1, "max_steps": 0, "intervals": False, "n_design": 6 * len(mine),
-                "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
+                "fixed": _fixed_for(fam, options.get("fixed"))}
         res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)
         lam, lam_t = res.config["wavelength"], res.config["target_wavelength"]
         samples = res.fields.get("samples")
@@ -152,7 +157,6 @@ def fit_auto(target, names, *, families=None, top=2, progress, assess, score=Non
     if int(top) < 1:
         raise ValueError(f"top must be an integer >= 1 (got {top!r})")
     cfg = options["stats"]
-    fixed = options.get("fixed") or {}
     screened = screen(target, names, chosen, options, score, screen_rule, progress)
     stripes = stripe_angle(target.field)
     to_fit = screened[: int(top)]
@@ -163,7 +167,7 @@ def fit_auto(target, names, *, families=None, top=2, progress, assess, score=Non
     for row in to_fit:
         fam = FAMILIES[row["family"]]
         mine = _names_for(fam, names)
-        opts = {**options, "fixed": {k: v for k, v in fixed.items() if k.rpartition(":")[2] in fam.parameters()}}
+        opts = {**options, "fixed": _fixed_for(fam, options.get("fixed"))}
         res = assess(fit_one(target, row["family"], mine, progress=progress, **opts))
         full.append((*shows_stripes(res.sample, stripes), penalised(res.score, len(mine), cfg), res))
     # rejected fits last, then by the held-out distance
