@@ -36,12 +36,14 @@ A patched list holds the same pairs as a rebuilt one within the influence radius
 other slots, and more pairs beyond it (its references are older), so the contacts' float
 sums run in another order. The list is therefore part of the run's state: the cells carry
 it from call to call (`Cells.neighbours`, saved in their files), and a resumed call
-continues it, so that it is bit-identical to one uninterrupted call (issue 37). A call
+continues it, so that it is bit-identical to one uninterrupted call. A call
 builds a list afresh only when the cells carry none, or one for another radius, skin,
 capacity or `max_neighbours` (`Search.fits`).
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import equinox as eqx
 import jax
@@ -94,9 +96,7 @@ class NeighbourList(eqx.Module):
 
     def retagged(self, **changes) -> "NeighbourList":
         """A copy with some fields replaced (static ones too)."""
-        fields = {name: getattr(self, name) for name in ("index", "reference", "built_count", "overflow",
-                                                           "builds", "radius", "skin", "bucket_size")}
-        return NeighbourList(**{**fields, **changes})
+        return dataclasses.replace(self, **changes)
 
 
 class Search(eqx.Module):
