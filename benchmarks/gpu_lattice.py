@@ -7,11 +7,14 @@ counted as the issue counts it: 16 bytes per cell-step (two float32 species read
 written once), so its bandwidth is 16 x cell-steps/s against the card's peak (H100 SXM
 3.35 TB/s, H200 4.8 TB/s; another card: no fraction). `--unroll` re-times Euler with the
 scan body repeated k times per loop iteration (`_loop._scan` replaced for the run), which
-separates the step's own cost from the loop's per-iteration overhead. The solvers run at
+separates the step's own cost from the loop's per-iteration overhead; `--barrier` also times
+k steps per iteration separated by `lax.optimization_barrier`, so that XLA cannot fuse one step
+into the next, while the second step may still write into the first one's dead input (the
+copy that the scan's body makes of the whole state each step, bench_gpu.md, is what it tests). The solvers run at
 16x Euler's dt (the largest multiple that kept `fig4-r12`'s pattern for all five in
 `solvers.md`), so their simulated time per second is the figure a user sees.
 
-    python benchmarks/gpu_lattice.py [--sizes 1024 2048] [--steps 400] [--unroll 1 8]
+    python benchmarks/gpu_lattice.py [--sizes 1024 2048] [--steps 400] [--unroll 1 8] [--barrier 2 4]
 """
 
 from __future__ import annotations
@@ -47,17 +50,28 @@ def run_seconds(model, state, steps, dt, solver=None) -> float:
     return best
 
 
-def use_unroll(k: int, original):
-    """`_loop._scan` with its body repeated `k` times per loop iteration (`original` for 1);
-    the compiled programs are dropped so the next run traces the new loop."""
+def use_loop(k: int, original, barrier: bool = False):
+    """`_loop._scan` taking `k` steps per loop iteration (`original` for 1): by `unroll`, or
+    with `barrier` as k steps separated by `lax.optimization_barrier`. The compiled programs
+    are dropped so the next run traces the new loop."""
     from morphojax import _loop
 
-    def scan(step, carry, n):
+    def unrolled(step, carry, n):
         if n == 0:
             return carry
         return jax.lax.scan(lambda c, _: (step(c), None), carry, None, length=n, unroll=k)[0]
 
-    _loop._scan = original if k == 1 else scan
+    def separated(step, carry, n):
+        def body(c, _):
+            for _ in range(k):
+                c = jax.lax.optimization_barrier(step(c))
+            return c, None
+
+        full, rest = divmod(n, k)
+        carry = jax.lax.scan(body, carry, None, length=full)[0] if full else carry
+        return original(step, carry, rest)
+
+    _loop._scan = original if k == 1 else separated if barrier else unrolled
     jax.clear_caches()
 
 
@@ -66,6 +80,7 @@ def main():
     p.add_argument("--sizes", type=int, nargs="+", default=[1024, 2048])
     p.add_argument("--steps", type=int, default=400)
     p.add_argument("--unroll", type=int, nargs="+", default=[1, 8])
+    p.add_argument("--barrier", type=int, nargs="*", default=[2], help="steps per iteration, barriers between")
     p.add_argument("--solvers-at", type=int, default=1024, help="lattice size of the solver rows")
     args = p.parse_args()
     import morphojax as mj
@@ -76,15 +91,17 @@ def main():
     euler_rows, solver_rows = [], []
     for n in args.sizes:
         state = mj.paper_state(jax.random.key(0), (n, n))
-        for k in args.unroll:
-            use_unroll(k, original)
+        loops = [(k, False) for k in args.unroll] + [(k, True) for k in args.barrier]
+        for k, barrier in loops:
+            use_loop(k, original, barrier)
             sec = run_seconds(model, state, args.steps, DT)
             rate = n * n * args.steps / sec
             gbs = rate * BYTES_PER_CELL_STEP
-            euler_rows.append([f"{n}x{n}", k, f"{sec / args.steps * 1e6:.1f}", f"{rate / 1e9:.2f}",
+            euler_rows.append([f"{n}x{n}", f"{k}, barriers" if barrier else k, f"{sec / args.steps * 1e6:.1f}",
+                               f"{rate / 1e9:.2f}",
                                f"{gbs / 1e9:.0f}", f"{gbs / peak:.0%}" if peak else "n/a"])
             print(euler_rows[-1], flush=True)
-    use_unroll(1, original)
+    use_loop(1, original)
     n = args.solvers_at
     state = mj.paper_state(jax.random.key(0), (n, n))
     solvers = {"Euler": (None, DT), **{name: (solver, DT * SOLVER_FACTOR) for name, solver in {
@@ -101,7 +118,7 @@ def main():
         print(solver_rows[-1], flush=True)
     print(f"\n{machine()}; {kind}; peak {peak / 1e12:.2f} TB/s" if peak else f"\n{machine()}; {kind}")
     print("\nEuler, 16 bytes per cell-step:\n")
-    print(markdown_table(["lattice", "unroll", "us / step", "Gcell-steps/s", "GB/s", "of peak"], euler_rows))
+    print(markdown_table(["lattice", "steps per iteration", "us / step", "Gcell-steps/s", "GB/s", "of peak"], euler_rows))
     print(f"\nSolvers at {n}x{n} (Euler at dt {DT}, the others at {SOLVER_FACTOR}x):\n")
     print(markdown_table(["solver", "dt", "us / step", "Gcell-steps/s", "simulated time / s", "vs Euler"],
                          solver_rows))
