@@ -23,7 +23,6 @@ import argparse
 import time
 
 import jax
-
 from _harness import machine, markdown_table
 
 R, S, DT, SOLVER_FACTOR = 12.0, 3.0, 0.008, 16
@@ -39,7 +38,7 @@ def peak_bandwidth() -> tuple[str, float | None]:
 def run_seconds(model, state, steps, dt, solver=None) -> float:
     """Seconds of the compiled run: the best of three calls after a first that compiles."""
     import morphojax as mj
-    call = lambda: jax.block_until_ready(  # noqa: E731
+    call = lambda: jax.block_until_ready(
         mj.simulate(model, state, steps, dt, solver=solver, throw=False, check_dt=False).fields)
     call()
     best = float("inf")
