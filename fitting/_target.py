@@ -70,16 +70,17 @@ class Target:
 
 
 PIXEL_BYTES = 32  # memory a photo's pixel costs in a fit (its float64 grey, normalised, resampled; the RGB decode)
-DEEP_MODES = {"I;16": 65535.0, "I;16B": 65535.0, "I;16L": 65535.0, "I;16N": 65535.0}  # 16-bit greys
+DEEP_GREYS = ("I;16", "I;16B", "I;16L", "I;16N")  # 16-bit grey modes; 'I' holding values in [0, 65535] is one too
+# the modes a target is read from (16-bit greys become `DeepPicture`s, 'I' beyond 16 bits and
+# 'F' are read as numbers); premultiplied alpha ('La', 'RGBa'), 'LAB', 'HSV' and the packed
+# 'BGR;*' modes have no channels a target can be read from, and are refused
+READABLE_MODES = ("1", "L", "LA", "P", "PA", "RGB", "RGBA", "RGBX", "CMYK", "YCbCr", *DEEP_GREYS, "I", "F")
 
 
-def open_image(path: Path, what: str) -> Image.Image:
-    """The image at `path`, loaded (EXIF rotation applied) after its size, read from its header,
-    was checked against the memory limit; any failure is a ValueError naming the file. A 16-bit
-    PNG (grey, colour or with alpha) comes back at its depth as a `DeepPicture`, never clipped
-    or cut to 8 bits (see `morphojax._deep_png`)."""
+def open_image(path: Path, what: str):
+    """The image at `path` as `as_picture` reads it, after its size, read from its header, was
+    checked against the memory limit; any failure is a ValueError naming the file."""
     from morphojax._checks import check_memory  # the package's one memory limit (MORPHOJAX_MAX_MEMORY)
-    from morphojax._deep_png import read_deep_png
 
     if path.exists() and not path.is_file():
         raise ValueError(f"{what}: {path} is not a regular file")
@@ -87,12 +88,7 @@ def open_image(path: Path, what: str) -> Image.Image:
         with Image.open(path) as im:
             width, height = im.size  # from the header: nothing decoded yet
             check_memory(width * height * PIXEL_BYTES, f"{what}: the {width}x{height} image {path}")
-            deep = read_deep_png(im, path)  # None for anything but a 16-bit PNG
-            if deep is not None:
-                return deep
-            im = ImageOps.exif_transpose(im)
-            im.load()
-            return im
+            return as_picture(im, what, path)
     except FileNotFoundError:
         raise ValueError(f"cannot read image {path}: no such file") from None
     except Image.DecompressionBombError as err:  # Pillow's guard against huge images
@@ -105,6 +101,33 @@ def open_image(path: Path, what: str) -> Image.Image:
         raise ValueError(f"cannot read image {path}: {str(err).strip() or type(err).__name__}") from None
 
 
+def as_picture(im: Image.Image, what: str, path=None):
+    """The PIL image `im` (opened from `path`, or given open) as a target reads it, the same
+    whichever way it came, EXIF rotation applied: a 16-bit picture at its depth as a
+    `DeepPicture` (a 16-bit PNG not yet decoded, see `morphojax._deep_png`; a grey of mode
+    'I;16*', or 'I' holding values in [0, 65535], as samples / 65535), anything else loaded
+    as it is. A mode outside `READABLE_MODES` is a ValueError naming `what` and the modes
+    allowed."""
+    from morphojax._deep_png import DEPTH, DeepPicture, read_deep_png
+
+    if im.mode not in READABLE_MODES:
+        source = f" ({path})" if path is not None else ""
+        raise ValueError(f"{what}: an image of mode {im.mode!r}{source} cannot be read; allowed modes: "
+                         f"{', '.join(READABLE_MODES)} (convert it first, e.g. image.convert('RGB'))")
+    # a PNG not decoded yet: its samples, all 16 bits of them (a 16-bit colour PNG's second
+    # pass reopens its file, which an image opened from a file object has not: refused there)
+    deep = read_deep_png(im, path if path is not None else (getattr(im, "filename", "") or "<image>"))
+    if deep is not None:
+        return deep
+    im = ImageOps.exif_transpose(im)
+    im.load()
+    if im.mode in DEEP_GREYS or im.mode == "I":
+        samples = np.asarray(im)
+        if im.mode in DEEP_GREYS or (samples.size and 0 <= samples.min() and samples.max() <= DEPTH):
+            return DeepPicture((samples.astype(np.float32) / DEPTH)[..., None], "L")
+    return im
+
+
 def _channel(img: Image.Image, channel: str) -> np.ndarray:
     if channel not in CHANNELS:
         raise ValueError(f"unknown channel {channel!r}; allowed: {', '.join(CHANNELS)}")
@@ -112,7 +135,7 @@ def _channel(img: Image.Image, channel: str) -> np.ndarray:
 
     if isinstance(img, DeepPicture):  # a 16-bit PNG from `open_image`: every channel at its depth
         return img.channel(channel)
-    if img.mode in DEEP_MODES or img.mode in ("I", "F"):  # one deep grey channel: read at its depth
+    if img.mode in ("I", "F"):  # one grey channel of numbers (16-bit greys are `DeepPicture`s already)
         if channel == "alpha":
             raise ValueError("channel 'alpha' requested but the image has no alpha channel")
         grey = np.asarray(img, np.float64)
@@ -120,8 +143,7 @@ def _channel(img: Image.Image, channel: str) -> np.ndarray:
             return np.zeros_like(grey)
         if not np.isfinite(grey).all():
             raise ValueError("the image holds NaN or infinite pixels")
-        depth = DEEP_MODES.get(img.mode) or (65535.0 if img.mode == "I" and grey.max(initial=0) <= 65535 else 1.0)
-        return grey / depth
+        return grey
     if channel == "alpha":
         if "A" not in img.getbands():
             raise ValueError("channel 'alpha' requested but the image has no alpha channel")
@@ -207,7 +229,8 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
 
     Args:
         source: image path (any format pillow reads; EXIF orientation is honoured; RGB,
-            grey or with alpha) or a 2D array.
+            grey or with alpha; 16-bit PNGs and greys at 16 bits), an open PIL image (read as
+            its file would be; modes in `READABLE_MODES`) or a 2D array.
         crop: (x0, y0, x1, y1) pixel box (after EXIF rotation), x1/y1 exclusive.
         channel: "luminance" (default), "red", "green", "blue", "alpha", "saturation", "value".
         invert: if True, dark pigment becomes high values (match a model where the pigment
@@ -220,8 +243,8 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
         path = Path(source)
         im = open_image(path, "load_target.source")
         name = str(path)
-    elif isinstance(source, Image.Image):
-        im, name = ImageOps.exif_transpose(source), "<image>"
+    elif isinstance(source, Image.Image):  # read as its file would be (`as_picture`)
+        im, name = as_picture(source, "load_target.source"), "<image>"
     else:
         arr = np.asarray(source, np.float64)
         if arr.ndim != 2:

@@ -397,6 +397,64 @@ def test_sixteen_bit_contrast_below_eight_bits_is_kept(tmp_path, bands):
         assert len({colour for _, colour in stops}) >= 2
 
 
+TARGET_ARRAYS = ("field", "pixels", "rgb", "values")
+
+
+def test_an_open_sixteen_bit_image_reads_as_its_file(tmp_path):
+    """An open PIL image of a 16-bit grey (as opened, or made in memory as 'I;16', 'I;16B'
+    or 'I') gives the target its PNG's path gives, field, pixels and palette thumbnail, at 16
+    bits: not the target of its 8-bit quantisation (Pillow's own RGB of an 'I;16' clips it
+    at 255, a white thumbnail)."""
+    from PIL import Image
+
+    fitting = pytest.importorskip("fitting")
+    rows, cols = np.mgrid[0:64, 0:64]
+    grey = (30000 + 300 * np.sin(cols / 2.5) * np.cos(rows / 3.5)).astype(np.uint16)  # all within one high byte's 2
+    path = tmp_path / "deep.png"
+    Image.fromarray(grey).save(path)  # Pillow writes a 16-bit grey PNG
+    by_path = fitting.load_target(path, cell_pixels=2.0)
+    with Image.open(path) as opened:
+        given_open = [fitting.load_target(opened, cell_pixels=2.0)]
+    given_open += [fitting.load_target(im, cell_pixels=2.0) for im in (
+        Image.fromarray(grey), Image.fromarray(grey.astype(">u2")), Image.fromarray(grey).convert("I"))]
+    assert [im.mode for im in (Image.fromarray(grey), Image.fromarray(grey.astype(">u2")))] == ["I;16", "I;16B"]
+    for target in given_open:
+        for name in TARGET_ARRAYS:
+            np.testing.assert_array_equal(getattr(target, name), getattr(by_path, name), err_msg=name)
+    eight = fitting.load_target(Image.fromarray(np.round(grey / 257.0).astype(np.uint8)), cell_pixels=2.0)
+    assert np.abs(eight.pixels - by_path.pixels).max() > 0.1  # 8 bits hold ~3 levels of these stripes
+    assert by_path.rgb.max() < 0.5  # the thumbnail of a mid grey, not clipped to white
+
+
+@pytest.mark.parametrize("mode", ["RGBA", "LA", "P", "RGB"])
+def test_an_open_image_reads_as_its_file(tmp_path, mode):
+    """Colour, alpha and palette images given open read as their files: a 16-bit RGB PNG
+    opened but not decoded at its depth, the others as Pillow reads them."""
+    from PIL import Image
+
+    fitting = pytest.importorskip("fitting")
+    rng = np.random.default_rng(1)
+    path = tmp_path / f"{mode}.png"
+    Image.fromarray((rng.random((48, 48, 4)) * 255).astype(np.uint8), "RGBA").convert(mode).save(path)
+    deep = _png16(tmp_path / "rgb16.png", (rng.random((48, 48, 3)) * 65535).astype(np.uint16))
+    for file in (path, deep):
+        by_path = fitting.load_target(file, cell_pixels=2.0)
+        with Image.open(file) as opened:
+            given_open = fitting.load_target(opened, cell_pixels=2.0)
+        for name in TARGET_ARRAYS:
+            np.testing.assert_array_equal(getattr(given_open, name), getattr(by_path, name), err_msg=name)
+
+
+@pytest.mark.parametrize("mode", ["La", "RGBa", "LAB", "HSV"])
+def test_an_open_image_of_a_mode_a_target_cannot_read_is_refused(mode):
+    from PIL import Image
+
+    fitting = pytest.importorskip("fitting")
+    with pytest.raises(ValueError, match=rf"load_target\.source: an image of mode '{mode}' cannot be read; "
+                                         r"allowed modes: 1, L, LA, P, .*I;16.*F"):
+        fitting.load_target(Image.new(mode, (32, 32)), cell_pixels=2.0)
+
+
 def test_sixteen_bit_colour_png_that_pillow_cannot_read_deep_is_refused(tmp_path, monkeypatch):
     """Where this Pillow cannot decode the low bytes (a raw mode it lacks), the file is
     refused by name with the advice to convert it, never read at 8 bits."""
