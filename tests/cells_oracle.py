@@ -5,6 +5,10 @@ them (4.7 harmonic mean, 4.8 anisotropy, 4.9 collision impulse, 4.10 polarizatio
 It interprets the same rule objects as the simulator but reads only their fields, so a
 wrong evaluation in morphojax's compiled step shows up as a mismatch. Random draws cannot
 be reproduced, so the oracle accepts only rules without Chance or spreads.
+
+On a torus (`period`, (width, height) centred on the origin) every offset between two
+cells is its nearest periodic image, written out per axis as d - L round(d / L), and
+positions (children's too) are wrapped into [-L/2, L/2) after the iteration.
 """
 
 from __future__ import annotations
@@ -16,9 +20,25 @@ import numpy as np
 import morphojax.cells as mc
 
 
-def neighbours(pos: np.ndarray, radius: float) -> list[list[int]]:
+def displacement(pos: np.ndarray, i: int, j: int, period=None) -> np.ndarray:
+    """d = pos[j] - pos[i], on a torus its minimum image."""
+    d = pos[j] - pos[i]
+    if period is not None:
+        d = d - np.asarray(period) * np.round(d / np.asarray(period))
+    return d
+
+
+def wrap(pos: np.ndarray, period) -> np.ndarray:
+    """Positions wrapped into the torus centred on the origin (unchanged without one)."""
+    if period is None:
+        return pos
+    size = np.asarray(period, float)
+    return pos - size * np.floor((pos + size / 2) / size)
+
+
+def neighbours(pos: np.ndarray, radius: float, period=None) -> list[list[int]]:
     n = len(pos)
-    return [[j for j in range(n) if j != i and np.hypot(*(pos[j] - pos[i])) < radius] for i in range(n)]
+    return [[j for j in range(n) if j != i and np.hypot(*displacement(pos, i, j, period)) < radius] for i in range(n)]
 
 
 def _num(x):
@@ -45,12 +65,14 @@ _OPS = {"==": lambda a, b: a == b, "!=": lambda a, b: a != b, "<": lambda a, b: 
         "<=": lambda a, b: a <= b, ">": lambda a, b: a > b, ">=": lambda a, b: a >= b}
 
 
-def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=None, box=None) -> dict:
+def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=None, box=None,
+         period=None) -> dict:
     """One iteration on a dict of live-cell arrays: pos (n,2), angle (n,), polarised (n,),
-    conc (S,n), rates (S,n), birth (n,), fixed (n,), upper (S,), aniso (S,), species."""
+    conc (S,n), rates (S,n), birth (n,), fixed (n,), upper (S,), aniso (S,), species;
+    `box` clamps positions into a rectangle, `period` makes the domain a torus."""
     pos, conc, rates = s["pos"], s["conc"], s["rates"]
     n, S = len(pos), conc.shape[0]
-    nb = neighbours(pos, radius)
+    nb = neighbours(pos, radius, period)
     dconc, drates = np.zeros_like(conc), np.zeros_like(rates)
     divide, direction = np.zeros(n, bool), np.zeros(n)
     angle, polarised = s["angle"].copy(), s["polarised"].copy()
@@ -100,7 +122,7 @@ def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=
             for i in np.flatnonzero(fired):
                 p = np.zeros(2)
                 for j in nb[i]:
-                    d = pos[j] - pos[i]
+                    d = displacement(pos, i, j, period)
                     p += (conc[row, j] - conc[row, i]) * d / np.hypot(*d)
                 if p @ p > 0:
                     angle[i], polarised[i] = math.atan2(p[1], p[0]), True
@@ -110,7 +132,7 @@ def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=
     offset = np.zeros_like(pos)
     for i in range(n):
         for j in nb[i]:
-            d = pos[j] - pos[i]
+            d = displacement(pos, i, j, period)
             dist = np.hypot(*d)
             for r in range(S):
                 di, dj = rates[r, i], rates[r, j]
@@ -129,7 +151,7 @@ def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=
     new_pos = pos + offset
     if box is not None:
         new_pos = np.clip(new_pos, -np.asarray(box) / 2, np.asarray(box) / 2)
-    new["pos"], new["angle"], new["polarised"] = new_pos, angle, polarised
+    new["pos"], new["angle"], new["polarised"] = wrap(new_pos, period), angle, polarised
 
     # newborn cells, in index order: copies of the parents as the rules saw them (the
     # current state), placed and turned from the current position and polarity (4.1, 4.4)
@@ -139,7 +161,7 @@ def step(s: dict, rules, t: int, dt: float, radius: float = 3.0, division_limit=
         a = s["angle"][i] + direction[i]
         for key, old in (("conc", conc), ("rates", rates)):
             new[key] = np.concatenate([new[key], old[:, i:i + 1]], axis=1)
-        new["pos"] = np.concatenate([new["pos"], [pos[i] + [math.cos(a), math.sin(a)]]])
+        new["pos"] = np.concatenate([new["pos"], wrap(pos[i] + np.array([[math.cos(a), math.sin(a)]]), period)])
         new["angle"] = np.append(new["angle"], a)
         new["polarised"] = np.append(new["polarised"], s["polarised"][i])
         new["birth"] = np.append(new["birth"], t + 1)

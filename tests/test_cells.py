@@ -222,7 +222,8 @@ def test_cells_files_without_a_neighbour_list_still_load_and_resume(mixed, tmp_p
         arrays = {k: data[k] for k in data.files}
     meta = json.loads(str(arrays["metadata"]))
     assert meta["neighbour_list"]["built_count"] == int(half.count)
-    assert meta["format"] == "morphojax-cells/2"  # with a list: a reader of /1 only refuses it by its format
+    assert meta["format"] == "morphojax-cells/3"  # with a list: a reader of /1 only refuses it by its format
+    assert meta["period"] is None and meta["neighbour_list"]["period"] is None  # an open domain
     old = {k: v for k, v in arrays.items() if not k.startswith("neighbour_")}
     meta.pop("neighbour_list")
     np.savez_compressed(tmp_path / "future.npz", **{**old, "metadata": np.asarray(json.dumps(

@@ -21,7 +21,7 @@ from ._rules import (
     diff,
     mapped,
 )
-from ._space import PACKING_AREA, Box, Packed
+from ._space import PACKING_AREA, Box, Packed, Torus
 from ._state import Cells, concatenate, make_cells
 from ._simulate import INFLUENCE_RADIUS, simulate_cells
 from ._files import load_cells, save_cells
@@ -70,6 +70,7 @@ __all__ = [
     "simulate_cells",
     "SPACING",
     "texture_pixel_centres",
+    "Torus",
     "Var",
     "Within",
     "write_cells_svg",

@@ -1,6 +1,7 @@
 """The cells each cell touches this iteration: from the neighbour list (cells within the
 influence radius + skin), those strictly within the influence radius, with the offset,
-distance and unit direction to each (thesis 4.2; the d and |d| of eqs. 4.8-4.10)."""
+distance and unit direction to each (thesis 4.2; the d and |d| of eqs. 4.8-4.10). On a
+torus (the list's `period`) the offset is the neighbour's nearest periodic image."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from ._neighbours import NeighbourList
+from ._space import minimum_image
 from ._state import Cells
 
 
@@ -38,6 +40,8 @@ def contacts(cells: Cells, neighbours: NeighbourList, radius: float) -> Contacts
     x, y = cells.position[:, 0], cells.position[:, 1]
     dx = jnp.take(x, safe, mode="clip") - x[:, None]
     dy = jnp.take(y, safe, mode="clip") - y[:, None]
+    if neighbours.period is not None:
+        dx, dy = minimum_image(dx, neighbours.period[0]), minimum_image(dy, neighbours.period[1])
     squared = dx * dx + dy * dy
     near = (index < capacity) & (squared < radius * radius) & cells.alive[:, None]
     apart = near & (squared > 0)

@@ -9,6 +9,11 @@ the uninterrupted one. Files with a list are format "morphojax-cells/2" (a morph
 reads only /1 refuses them by their format instead of failing on an unknown array); /1
 files, without a list (those written before it was saved), load as before, and a run
 resumed from one builds its list afresh.
+
+Cells on a torus (`Cells.period`) save its (width, height) as the metadata entry `period`
+(and their list its own), so a run resumed from the file is periodic too. Files with the
+entry are format "morphojax-cells/3" (every file is written so; /1 and /2 files, from
+before tori, load as cells of an open domain).
 """
 
 from __future__ import annotations
@@ -21,10 +26,12 @@ import numpy as np
 
 from .._files import read_npz, write_npz
 from ._neighbours import NeighbourList
+from ._space import check_period
 from ._state import STATUS_FIELDS, Cells, make_cells
 
-FORMAT = "morphojax-cells/2"
-READABLE = ("morphojax-cells/1", FORMAT)  # /1: no saved neighbour list
+FORMAT = "morphojax-cells/3"
+READABLE = ("morphojax-cells/1", "morphojax-cells/2", FORMAT)  # /1: no saved neighbour list; /1, /2: no torus
+PERIOD = "period"  # the metadata entry of the torus the cells (or their list) live on: [width, height] or null
 LIST_ARRAYS = ("neighbour_index", "neighbour_reference")  # the saved neighbour list's live rows
 LIST_META = "neighbour_list"  # its metadata: the search that keeps it and its counters
 
@@ -42,6 +49,7 @@ def save_cells(path, cells: Cells, metadata: dict | None = None) -> Path:
         "step": int(cells.step),
         "status": cells.message(),
         **(metadata or {}),
+        PERIOD: None if cells.period is None else list(cells.period),
     }
     live = cells.live()
     listed = _list_entries(cells)
@@ -67,7 +75,8 @@ def _list_entries(cells: Cells) -> dict:
     if int(nb.built_count) > n or (index[n:] != cells.capacity).any() or (reference[n:] != 0).any():
         return {}
     meta = {"radius": nb.radius, "skin": nb.skin, "bucket_size": nb.bucket_size,
-            "built_count": int(nb.built_count), "builds": int(nb.builds), "overflow": bool(nb.overflow)}
+            "built_count": int(nb.built_count), "builds": int(nb.builds), "overflow": bool(nb.overflow),
+            PERIOD: None if nb.period is None else list(nb.period)}
     rows = np.where(index[:n] >= cells.capacity, -1, index[:n]).astype(np.int32)
     return {LIST_META: meta, "neighbour_index": rows, "neighbour_reference": reference[:n]}
 
@@ -125,11 +134,21 @@ def _cells_from(meta, arrays):
     cells = make_cells(
         meta["species"], position, **arrays, lower=lower, upper=upper,
         anisotropic=tuple(bool(a) for a in meta["anisotropic"]), capacity=int(meta["capacity"]), step=int(meta["step"]),
+        period=_period(meta.get(PERIOD), PERIOD),
     )
     cells = cells.replace(**{name: jnp.asarray(int(v), jnp.int32) for name, v in zip(STATUS_FIELDS, status)})
     if listed or LIST_META in meta:
         cells = cells.with_neighbours(_list_from(meta.get(LIST_META), listed, cells))
     return cells, meta
+
+
+def _period(value, field: str):
+    """A saved torus: None, or [width, height] of numbers in (0, +inf)."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+        raise ValueError(f"metadata field {field!r} must be null or [width, height] (got {value!r})")
+    return check_period(value, f"metadata field {field!r}")
 
 
 def _list_from(meta, arrays, cells: Cells) -> NeighbourList:
@@ -146,6 +165,9 @@ def _list_from(meta, arrays, cells: Cells) -> NeighbourList:
     if not (meta["radius"] > 0 and meta["skin"] >= 0 and meta["bucket_size"] >= 1 and 0 <= meta["built_count"] <= n
             and meta["builds"] >= 0):
         raise ValueError(f"metadata field {LIST_META} holds values out of range ({meta})")
+    period = _period(meta.get(PERIOD), f"{LIST_META}.{PERIOD}")
+    if period != cells.period:
+        raise ValueError(f"its neighbour list's torus {period} is not its cells' {cells.period}")
     index, reference = arrays["neighbour_index"], arrays["neighbour_reference"]
     if index.ndim != 2 or index.shape[0] != n or index.shape[1] < 1 or index.dtype.kind not in "iu":
         raise ValueError(f"its array 'neighbour_index' must hold integers, one row per cell (got {index.shape} "
@@ -163,4 +185,4 @@ def _list_from(meta, arrays, cells: Cells) -> NeighbourList:
         index=jnp.asarray(rows), reference=jnp.asarray(where, cells.position.dtype),
         built_count=jnp.asarray(meta["built_count"], jnp.int32), overflow=jnp.asarray(meta["overflow"]),
         builds=jnp.asarray(meta["builds"], jnp.int32), radius=float(meta["radius"]), skin=float(meta["skin"]),
-        bucket_size=int(meta["bucket_size"]))
+        bucket_size=int(meta["bucket_size"]), period=period)

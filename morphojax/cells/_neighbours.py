@@ -32,6 +32,14 @@ a cell with more than `max_neighbours` partners) sets `overflow`: the simulator 
 iteration, so a missed neighbour is never silent; growing the room is done outside jit
 (`Listing.run`, `needed_room`).
 
+On a torus (`Torus`, a periodic domain), every offset is the shortest of its periodic
+images (the minimum-image convention) and the buckets tile the torus: the run of three
+buckets around a cell at a row's end goes on at the row's other end (two stretches of
+`order` instead of one), and the rows above the top one are the bottom ones. Each side
+holds floor(side / radius) buckets (capped by `table_size`), or one bucket when fewer
+than three would fit, so that no bucket is read twice. A list carries its torus (`period`)
+and serves no other domain.
+
 A patched list holds the same pairs as a rebuilt one within the influence radius but in
 other slots, and more pairs beyond it (its references are older), so the contacts' float
 sums run in another order. The list is therefore part of the run's state: the cells carry
@@ -51,6 +59,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._space import minimum_image
+
 PATCH_SIZES = (8, 64)  # movers a patch handles per branch; more than the last: a full build
 
 
@@ -66,8 +76,9 @@ class NeighbourList(eqx.Module):
             row yet).
         overflow: bool, a build or patch ran out of room (sticky until the next full build).
         builds: int32, full builds since the first one (patches are not counted).
-        radius, skin, bucket_size: (static) the search that keeps it (`Search`'s); a call
-            with another radius or skin builds its own list.
+        radius, skin, bucket_size, period: (static) the search that keeps it (`Search`'s);
+            a call with another radius, skin or torus (`period`, (width, height), None for
+            an open domain) builds its own list.
     """
 
     index: Array
@@ -78,6 +89,7 @@ class NeighbourList(eqx.Module):
     radius: float = eqx.field(static=True)
     skin: float = eqx.field(static=True)
     bucket_size: int = eqx.field(static=True)
+    period: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     @property
     def max_neighbours(self) -> int:
@@ -103,8 +115,9 @@ class Search(eqx.Module):
     """How to search (static): the list radius (influence radius + skin), the Verlet skin,
     and the sizes of the buffers: `max_neighbours` slots per cell, `bucket_size` cells per
     bucket on average over three in a row (a full build reads 3 x `bucket_size` candidates
-    from each of a cell's three rows of buckets), `table_size` buckets at most, and the
-    movers a patch handles."""
+    from each of a cell's three rows of buckets), `table_size` buckets at most, the movers
+    a patch handles, and the torus the cells live on (`period`, (width, height); None for
+    an open domain)."""
 
     radius: float = eqx.field(static=True)
     skin: float = eqx.field(static=True)
@@ -112,19 +125,21 @@ class Search(eqx.Module):
     bucket_size: int = eqx.field(static=True)
     table_size: int = eqx.field(static=True)
     patch_sizes: tuple[int, ...] = eqx.field(static=True, default=PATCH_SIZES)
+    period: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     def build(self, position: Array, count: Array, builds=0) -> NeighbourList:
         index, overflow = find_neighbours(position, count, self.radius, self.max_neighbours,
-                                          self.bucket_size, self.table_size)
+                                          self.bucket_size, self.table_size, self.period)
         return NeighbourList(index, position, jnp.asarray(count, jnp.int32), overflow,
-                             jnp.asarray(builds, jnp.int32), self.radius, self.skin, self.bucket_size)
+                             jnp.asarray(builds, jnp.int32), self.radius, self.skin, self.bucket_size,
+                             self.period)
 
     def fits(self, neighbours: NeighbourList | None, capacity: int) -> bool:
         """Whether a carried list can go on under this search (static): the same radius,
-        skin, capacity and slots per cell. (`bucket_size` and `table_size` only size a full
-        build's reads: they change no list that did not overflow.)"""
+        skin, torus, capacity and slots per cell. (`bucket_size` and `table_size` only size a
+        full build's reads: they change no list that did not overflow.)"""
         return (neighbours is not None and neighbours.radius == self.radius and neighbours.skin == self.skin
-                and neighbours.index.shape == (capacity, self.max_neighbours))
+                and neighbours.period == self.period and neighbours.index.shape == (capacity, self.max_neighbours))
 
     def carry_on(self, neighbours: NeighbourList, position: Array, count: Array) -> NeighbourList:
         """A carried list (`fits`) as this search's, unchanged (so a resumed run goes on
@@ -138,7 +153,7 @@ class Search(eqx.Module):
         """(capacity,) bool: the live cells that broke the list's rule, born since it was
         last updated or moved more than half the skin from their reference."""
         cell = jnp.arange(position.shape[0])
-        drift = jnp.sum((position - neighbours.reference) ** 2, axis=1)
+        drift = jnp.sum(offsets(position - neighbours.reference, self.period) ** 2, axis=1)
         return (cell < count) & ((cell >= neighbours.built_count) | (drift > (self.skin / 2) ** 2))
 
     def update(self, neighbours: NeighbourList, position: Array, count: Array) -> NeighbourList:
@@ -150,13 +165,21 @@ class Search(eqx.Module):
         sizes = self.patch_sizes
         branch = jnp.where(n == 0, 0, 1 + jnp.searchsorted(jnp.asarray(sizes), n))  # len(sizes) + 1: build
         keep = [lambda nb, m: nb]
-        patches = [lambda nb, m, size=size: patch(nb, m, position, count, self.radius, size) for size in sizes]
+        patches = [lambda nb, m, size=size: patch(nb, m, position, count, self.radius, size, self.period)
+                   for size in sizes]
         rebuild = [lambda nb, m: self.build(position, count, nb.builds + 1)]
         return jax.lax.switch(branch, keep + patches + rebuild, neighbours, movers)
 
 
+def offsets(offset: Array, period) -> Array:
+    """(..., 2) offsets as they are (open domain), or their minimum images on a torus."""
+    if period is None:
+        return offset
+    return jnp.stack([minimum_image(offset[..., 0], period[0]), minimum_image(offset[..., 1], period[1])], axis=-1)
+
+
 def patch(neighbours: NeighbourList, movers: Array, position: Array, count: Array, radius: float,
-          size: int) -> NeighbourList:
+          size: int, period=None) -> NeighbourList:
     """The list with the rows of `movers` (at most `size` of them) recomputed at their
     current positions, by a brute search over every live cell's reference, and each mover
     dropped from or added to the rows of the other cells it left or reached. The rows of
@@ -172,6 +195,8 @@ def patch(neighbours: NeighbourList, movers: Array, position: Array, count: Arra
     # the movers' new rows: every live cell whose reference lies within `radius` of theirs
     dx = reference[None, :, 0] - reference[at, 0][:, None]
     dy = reference[None, :, 1] - reference[at, 1][:, None]
+    if period is not None:
+        dx, dy = minimum_image(dx, period[0]), minimum_image(dy, period[1])
     hit = (dx * dx + dy * dy < radius * radius) & (cell[None, :] < count) & (cell[None, :] != who[:, None])
     hit &= real[:, None]
     rank = running_count(hit) - 1
@@ -250,8 +275,11 @@ def _rank_among_equals(values: Array) -> Array:
 
 
 def find_neighbours(position: Array, count: Array, radius: float, max_neighbours: int,
-                    bucket_size: int, table_size: int) -> tuple[Array, Array]:
-    """(index (capacity, max_neighbours), overflow) of the live cells within `radius`."""
+                    bucket_size: int, table_size: int, period=None) -> tuple[Array, Array]:
+    """(index (capacity, max_neighbours), overflow) of the live cells within `radius`
+    (of their minimum images on the torus `period`, when given)."""
+    if period is not None:
+        return _find_on_torus(position, count, radius, max_neighbours, bucket_size, table_size, period)
     capacity = position.shape[0]
     alive = jnp.arange(capacity) < count
     side_count = int(np.floor(np.sqrt(table_size)))  # buckets per side, at most
@@ -286,26 +314,94 @@ def find_neighbours(position: Array, count: Array, radius: float, max_neighbours
     near = dx * dx + dy * dy < radius * radius
     me = jnp.arange(capacity)[:, None]
     valid = (seat < jnp.repeat(end, run, axis=1)) & near & (candidate != me) & alive[:, None]
+    index, full = _pack(valid, candidate, max_neighbours)
+    return index, crowded | full
 
-    # pack the valid candidates into max_neighbours slots (one flat scatter: the fastest
-    # compaction on a CPU, well ahead of a per-row sort or top_k)
+
+def torus_buckets(period, radius: float, table_size: int) -> tuple[int, int]:
+    """(columns, rows) of buckets tiling the torus `period`: floor(side / radius) per side,
+    so each bucket's sides are at least `radius`; at most floor(sqrt(table_size)); one
+    where fewer than three would fit (three or more buckets a side: a cell's 3 x 3
+    buckets are distinct, each read once)."""
+    most = int(np.floor(np.sqrt(table_size)))
+    counts = []
+    for length in period:
+        n = min(int(np.floor(length / radius)), most)
+        while n > 1 and length / n < radius:  # float rounding: never a side below radius
+            n -= 1
+        counts.append(n if n >= 3 else 1)
+    return counts[0], counts[1]
+
+
+def _find_on_torus(position: Array, count: Array, radius: float, max_neighbours: int, bucket_size: int,
+                   table_size: int, period) -> tuple[Array, Array]:
+    """`find_neighbours` on a torus: buckets that tile it, runs that wrap at a row's ends,
+    minimum-image distances."""
+    capacity = position.shape[0]
+    alive = jnp.arange(capacity) < count
+    nx, ny = torus_buckets(period, radius, table_size)
+    buckets = nx * ny
+    size = jnp.asarray(period, position.dtype)
+    cell_side = size / jnp.asarray([nx, ny], position.dtype)
+    bucket = jnp.floor((position + size / 2) / cell_side).astype(jnp.int32) % jnp.asarray([nx, ny])
+    slot = jnp.where(alive, bucket[:, 0] + nx * bucket[:, 1], buckets)
+    order = jnp.argsort(slot)
+    starts = jnp.concatenate([jnp.zeros(1, jnp.int32),
+                              jnp.cumsum(jnp.zeros(buckets + 1, jnp.int32).at[slot].add(1))])
+
+    # per row of buckets around a cell (three rows, or the one when a side holds one
+    # bucket), its columns c-1, c, c+1 (mod nx) are stretch A, the columns inside the row,
+    # and stretch B, the column past the row's end (c = 0: column nx-1; c = nx-1: column
+    # 0); a row reads up to `run` cells from A, then B
+    run = 3 * bucket_size
+    shifts = jnp.arange(-1, 2) if ny >= 3 else jnp.zeros(1, jnp.int32)
+    row = (bucket[:, 1:2] + shifts[None, :]) % ny                       # (C, R)
+    column = bucket[:, 0:1]
+    first_a = starts[jnp.maximum(column - 1, 0) + nx * row]
+    end_a = starts[jnp.minimum(column + 1, nx - 1) + nx * row + 1]
+    wraps = (nx >= 3) & ((column == 0) | (column == nx - 1))
+    column_b = jnp.where(column == 0, nx - 1, 0)
+    first_b = starts[column_b + nx * row]
+    end_b = jnp.where(wraps, starts[column_b + nx * row + 1], first_b)
+    length_a, length = end_a - first_a, (end_a - first_a) + (end_b - first_b)
+    crowded = jnp.any(alive[:, None] & (length > run))
+    k = jnp.arange(run)
+    seat = jnp.where(k < length_a[..., None], first_a[..., None] + k, first_b[..., None] + k - length_a[..., None])
+    inside = (k < length[..., None]).reshape(capacity, -1)
+    candidate = jnp.take(order, seat.reshape(capacity, -1), mode="clip")
+    dx = minimum_image(jnp.take(position[:, 0], candidate, mode="clip") - position[:, 0:1], period[0])
+    dy = minimum_image(jnp.take(position[:, 1], candidate, mode="clip") - position[:, 1:2], period[1])
+    near = dx * dx + dy * dy < radius * radius
+    me = jnp.arange(capacity)[:, None]
+    valid = inside & near & (candidate != me) & alive[:, None]
+    index, full = _pack(valid, candidate, max_neighbours)
+    return index, crowded | full
+
+
+def _pack(valid: Array, candidate: Array, max_neighbours: int) -> tuple[Array, Array]:
+    """(index, full): each row's valid candidates packed into `max_neighbours` slots
+    (the rest hold the capacity), and whether a row had more."""
+    # one flat scatter: the fastest compaction on a CPU, well ahead of a per-row sort or top_k
+    capacity = valid.shape[0]
     rank = _row_cumsum(valid) - 1
     column = jnp.where(valid & (rank < max_neighbours), rank, max_neighbours)
     flat = (jnp.arange(capacity)[:, None] * (max_neighbours + 1) + column).ravel()
     index = jnp.full(capacity * (max_neighbours + 1), capacity, jnp.int32)
     index = index.at[flat].set(candidate.astype(jnp.int32).ravel(), mode="promise_in_bounds")
     index = index.reshape(capacity, max_neighbours + 1)[:, :max_neighbours]
-    overflow = crowded | jnp.any(rank[:, -1] >= max_neighbours)
-    return index, overflow
+    return index, jnp.any(rank[:, -1] >= max_neighbours)
 
 
-def needed_room(position, count: int, radius: float, table_size: int) -> tuple[int, int]:
+def needed_room(position, count: int, radius: float, table_size: int, period=None) -> tuple[int, int]:
     """(max_neighbours, bucket_size) that a search of these cells needs (NumPy, on the
-    host): the most cells any live cell has within `radius`, and the most cells in three
-    consecutive buckets of a row, divided by three, rounded up (`find_neighbours`'s runs)."""
+    host): the most cells any live cell has within `radius` (minimum images on the torus
+    `period`), and the most cells in three consecutive buckets of a row, divided by three,
+    rounded up (`find_neighbours`'s runs)."""
     xy = np.asarray(position)[: int(count)]
     if len(xy) == 0:
         return 0, 0
+    if period is not None:
+        return _needed_room_on_torus(xy.astype(np.float64), radius, table_size, period)
     side_count = int(np.floor(np.sqrt(table_size)))
     low = xy.min(axis=0)
     side = max(radius, float((xy.max(axis=0) - low).max()) / (side_count - 1))
@@ -316,6 +412,23 @@ def needed_room(position, count: int, radius: float, table_size: int) -> tuple[i
     from scipy.spatial import cKDTree
 
     pairs = cKDTree(xy).query_pairs(radius, output_type="ndarray")
+    counts = np.bincount(pairs.ravel(), minlength=len(xy)) if len(pairs) else np.zeros(len(xy), np.int64)
+    return int(counts.max()), int(-(-runs.max() // 3))
+
+
+def _needed_room_on_torus(xy: np.ndarray, radius: float, table_size: int, period) -> tuple[int, int]:
+    """`needed_room` on a torus: its buckets (`torus_buckets`), runs wrapping at a row's end."""
+    from scipy.spatial import cKDTree
+
+    size = np.asarray(period, np.float64)
+    nx, ny = torus_buckets(period, radius, table_size)
+    shifted = np.mod(xy + size / 2, size)
+    shifted = np.where(shifted >= size, 0.0, shifted)  # np.mod can round up to the period
+    bucket = np.floor(shifted / (size / [nx, ny])).astype(np.int64) % [nx, ny]
+    grid = np.zeros((ny, nx), np.int64)
+    np.add.at(grid, (bucket[:, 1], bucket[:, 0]), 1)
+    runs = grid + np.roll(grid, 1, axis=1) + np.roll(grid, -1, axis=1) if nx >= 3 else grid
+    pairs = cKDTree(shifted, boxsize=size).query_pairs(radius, output_type="ndarray")
     counts = np.bincount(pairs.ravel(), minlength=len(xy)) if len(pairs) else np.zeros(len(xy), np.int64)
     return int(counts.max()), int(-(-runs.max() // 3))
 

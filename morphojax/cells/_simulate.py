@@ -17,7 +17,7 @@ from ..models import AbstractModel
 from ._neighbours import PATCH_SIZES, Search, table_size_for
 from ._neighbours import needed_room as _needed_room
 from ._rules import Chance, Change, Divide, React, Rule, check_rules
-from ._space import as_domain
+from ._space import Torus, as_domain
 from ._state import Cells
 from ._step import Settings, contacts, harmonic_rate, step
 
@@ -61,7 +61,13 @@ def simulate_cells(
         rules: `Rule`s evaluated every iteration, in order (thesis 4.8.5).
         key: a `jax.random` key, required when a rule draws random numbers.
         species: the reagents `model` reacts (default: the cells' first ones).
-        domain: None (unbounded), (width, height) / `Box`, or "packed" / `Packed(area)`.
+        domain: None (unbounded), (width, height) / `Box`, "packed" / `Packed(area)`, or
+            `Torus(width, height)` (periodic: neighbours, diffusion and collisions across
+            the edges by the minimum-image convention, positions wrapped into it; each
+            side at least twice influence_radius + 0.3, the search's radius). Cells that
+            live on a torus (`cells.period`, e.g. from a `wrap` grid or a file) run on it
+            whatever the domain (None, or the same `Torus`; another is refused); cells
+            run on a `Torus` come back living on it.
         division_limit: cells with more neighbours than this do not divide (4.8.1).
         influence_radius: neighbours are the cells closer than this (4.2).
         max_neighbours, bucket_size: room in the neighbour search: partners per cell, and
@@ -101,6 +107,7 @@ def simulate_cells(
     check_range(dt, "dt", low=0.0, low_open=True)
     check_range(influence_radius, "influence_radius", low=0.0, low_open=True)
     radius = float(influence_radius) + SKIN
+    domain, cells = _torus_of(as_domain(domain), cells, radius)
     carried = cells.neighbours if isinstance(cells, Cells) else None
     same_search = carried is not None and carried.radius == radius and carried.skin == SKIN
     if max_neighbours is None:  # a resumed run keeps the room it had
@@ -125,12 +132,12 @@ def simulate_cells(
         key = jax.random.key(0)
     settings = Settings(
         dt=dt,
-        domain=as_domain(domain),
+        domain=domain,
         influence_radius=float(influence_radius),
         division_limit=division_limit,
         search=Search(radius=radius, skin=SKIN, max_neighbours=int(max_neighbours),
                       bucket_size=int(bucket_size), table_size=table_size_for(cells.capacity),
-                      patch_sizes=PATCH_SIZES),
+                      patch_sizes=PATCH_SIZES, period=cells.period),
     )
     if check_dt and steps and is_concrete(cells, dt):
         _check_dt(cells, settings)
@@ -138,6 +145,27 @@ def simulate_cells(
     if throw and is_concrete(out) and not bool(out.ok):  # under vmap or jit: read out.ok
         raise SimulationError(out.message())
     return out
+
+
+def _torus_of(domain, cells: Cells, radius: float):
+    """(domain, cells): cells on a torus run on it (a `Torus` of their period), and cells
+    run on a `Torus` come to live on it; a torus narrower than twice the search's
+    `radius` is refused (a cell would meet another through two images)."""
+    if isinstance(domain, Torus):
+        if cells.period is None:
+            cells = cells.with_period(domain.period)
+        elif cells.period != domain.period:
+            raise ValueError(f"the cells live on a torus of {cells.period[0]:g} x {cells.period[1]:g}; domain "
+                             f"Torus({domain.width:g}, {domain.height:g}) is another (pass domain=None)")
+    elif cells.period is not None:
+        if domain is not None:
+            raise ValueError(f"the cells live on a torus of {cells.period[0]:g} x {cells.period[1]:g}: domain must be "
+                             f"None or that Torus (got {type(domain).__name__})")
+        domain = Torus(*cells.period)
+    if domain is not None and isinstance(domain, Torus) and min(domain.period) < 2 * radius:
+        raise ValueError(f"the torus of {domain.width:g} x {domain.height:g} is too small: each side must be at least "
+                         f"2 x (influence_radius + {SKIN:g}) = {2 * radius:g} (the minimum-image convention)")
+    return domain, cells
 
 
 def _in_pieces(cells: Cells, rules, settings: Settings, key, steps: int, progress) -> Cells:
@@ -202,7 +230,8 @@ def _run(cells: Cells, neighbours, rules, settings: Settings, key, steps: int):
 def needed_room(cells: Cells, influence_radius: float = INFLUENCE_RADIUS) -> tuple[int, int]:
     """(max_neighbours, bucket_size) these cells need now in `simulate_cells`'s search
     (neighbours within the influence radius + skin)."""
-    return _needed_room(cells.position, cells.count, float(influence_radius) + SKIN, table_size_for(cells.capacity))
+    return _needed_room(cells.position, cells.count, float(influence_radius) + SKIN, table_size_for(cells.capacity),
+                        cells.period)
 
 
 def _check_dt(cells: Cells, settings: Settings) -> None:

@@ -12,12 +12,17 @@ The cells also carry the neighbour list their last run left (`neighbours`, None 
 run): it is part of the run's state, so a run resumed from them, or from their file, goes
 on bit for bit as the uninterrupted run (`_neighbours`).
 
+Cells on a torus (`period`, the (width, height) of a periodic rectangle centred on the
+origin: `create sqr_grid ... wrap`) keep their positions inside it, and every run of them
+is periodic (`simulate_cells`), so a run resumed from them, or from their file, is too.
+
 Units: lengths are cell radii (cells of a square grid sit 2 apart, the influence radius
 is 3); angles are radians from the +x axis toward +y; time is iterations x dt.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import equinox as eqx
@@ -27,6 +32,7 @@ from jax import Array
 
 from .._checks import default_float
 from ._neighbours import NeighbourList
+from ._space import check_period, wrap_positions
 
 NO_STEP = -1  # the value of a *_step field while nothing has happened
 STATUS_FIELDS = ("overflow_step", "neighbour_overflow_step", "nonfinite_step")  # what went wrong, and when
@@ -65,6 +71,8 @@ class Cells(eqx.Module):
             cells no run produced, and for cells rebuilt from their live buffers, as
             `concatenate` does): the next call goes on from it, so a resumed run equals an
             uninterrupted one bit for bit.
+        period: (static) (width, height) of the torus the cells live on (a periodic
+            rectangle centred on the origin), or None for an open domain.
     """
 
     position: Array
@@ -84,6 +92,7 @@ class Cells(eqx.Module):
     species: tuple[str, ...] = eqx.field(static=True)
     anisotropic: tuple[bool, ...] = eqx.field(static=True)
     neighbours: NeighbourList | None = None
+    period: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     @property
     def capacity(self) -> int:
@@ -150,6 +159,16 @@ class Cells(eqx.Module):
         carried = None if self.neighbours is None else self.neighbours.resized(int(capacity))
         return resized.with_neighbours(carried)
 
+    def with_period(self, period) -> Cells:
+        """The same cells on the torus `period` ((width, height), both > 0), their live
+        positions wrapped into it; None: on an open domain (positions unchanged)."""
+        period = check_period(period)
+        cells = dataclasses.replace(self, period=period)
+        if period is None:
+            return cells
+        wrapped = jnp.where(self.alive[:, None], wrap_positions(self.position, period), self.position)
+        return cells.replace(position=wrapped)
+
     def with_neighbours(self, neighbours: NeighbourList | None) -> "Cells":
         """A copy carrying `neighbours` (None: none, so the next run builds its own)."""
         return eqx.tree_at(lambda c: c.neighbours, self, neighbours, is_leaf=lambda x: x is None)
@@ -175,6 +194,7 @@ def make_cells(
     anisotropic=(),
     capacity: int | None = None,
     step: int = 0,
+    period=None,
 ) -> Cells:
     """Cells from NumPy-like arrays of the live cells (n of them), padded to `capacity`.
 
@@ -182,7 +202,8 @@ def make_cells(
     angles in radians, or NaN where a cell is unpolarised (`polarised` then defaults to the
     finite entries). `anisotropic`: names of the reagents whose diffusion follows polarity,
     or one bool per reagent. `upper`: saturation limits per reagent (None = no limit);
-    `lower`: the lower limits (default 0, as the thesis).
+    `lower`: the lower limits (default 0, as the thesis). `period`: (width, height) of the
+    torus the cells live on (positions are wrapped into it), None for an open domain.
     """
     species = tuple(str(s) for s in species)
     if not species or len(set(species)) != len(species):
@@ -241,8 +262,9 @@ def make_cells(
         widths[axis] = (0, capacity - n)
         return np.pad(arr, widths)
 
+    period = check_period(period)
     dtype = default_float()
-    return Cells(
+    cells = Cells(
         position=jnp.asarray(pad(position), dtype),
         polarity=jnp.asarray(pad(angle), dtype),
         polarised=jnp.asarray(pad(polarised)),
@@ -260,6 +282,8 @@ def make_cells(
         species=species,
         anisotropic=flags,
     )
+    return cells if period is None else cells.with_period(period)
+
 
 
 def concatenate(groups: Sequence[Cells], capacity: int | None = None) -> Cells:
@@ -272,6 +296,8 @@ def concatenate(groups: Sequence[Cells], capacity: int | None = None) -> Cells:
     for g in groups[1:]:
         if g.species != first.species:
             raise ValueError(f"every group must carry the same reagents (got {first.species} and {g.species})")
+        if g.period != first.period:
+            raise ValueError(f"every group must live on the same torus (got periods {first.period} and {g.period})")
     parts = [g.live() for g in groups]
     arrays = {name: np.concatenate([p[name] for p in parts], axis=1 if name in PER_REAGENT else 0)
               for name in parts[0]}
@@ -279,4 +305,5 @@ def concatenate(groups: Sequence[Cells], capacity: int | None = None) -> Cells:
     return make_cells(
         first.species, position, **arrays, lower=np.asarray(first.lower), upper=np.asarray(first.upper),
         anisotropic=first.anisotropic, capacity=len(position) if capacity is None else capacity, step=int(first.step),
+        period=first.period,
     )
