@@ -8,6 +8,7 @@ An experiment file holds one statement per line; `//` starts a comment anywhere 
     use polarity none | ANGLE [dev D]  |  use seed N
     create cell X Y | sqr_grid COLS ROWS | sqr_circle R  cell placement (4.8.3)
            | hex_grid COLS ROWS | hex_circle R | shape "FILE"   [at X Y] [dev D] [fixed]
+           (sqr_grid also takes [wrap]: the domain becomes a torus the grid tiles)
     set cell I | set cells I to J  chemical NAME [conc C [dev D]] [diff F [dev E]]
            [polarity none | ANGLE [dev D]] [fixed]          explicit parameters (4.8.4)
     rule [from I] [until J] CONDITION ACTION | and        rules (4.8.5)
@@ -29,6 +30,10 @@ Conventions (the thesis's, made explicit):
 - Cells are numbered in the order they are created; a grid numbers its cells row by row
   from the lowest row (see `_prepattern`), and `create shape` does the same for the
   letters of its file. `create sqr_grid COLS ROWS` is `cell_grid((ROWS, COLS))`.
+- `create sqr_grid COLS ROWS wrap` makes the domain `Torus(2 COLS, 2 ROWS)`, centred on the
+  origin (a grid placed `at` elsewhere has its cells wrapped into it): cells at opposite
+  edges are neighbours (thesis 7.3, Figs. 7.13 and 7.15). A listing wraps one grid, and
+  then has no `define domain`; the text written back keeps the `wrap` on its grid.
 - `set` REPLACES the named values of the cells (plus the noise of its `dev`); rules'
   `change` adds (thesis 4.8.5).
 - An `and` chain (`rule COND and` lines followed by a rule) is one `Rule` whose `when`
@@ -75,7 +80,7 @@ from ._listing_read import _Reader
 from ._listing_tokens import ListingError, format_number
 from ._listing_write import domain_key, format_command, format_rule, rule_key, same_rules
 from ._rules import Divide, Rule
-from ._space import Box, Packed
+from ._space import Box, Packed, Torus
 from ._state import Cells
 
 CAPACITY_GROWTH = 1.5  # a piece that outgrows the capacity runs again with half as much room again
@@ -104,7 +109,8 @@ class Listing:
         chemicals: the `Chemical`s in declaration order (the order of the cells' reagents).
         dt: `define time_step` (default 1).
         stop: `stop at N` (None if absent); see `steps`.
-        domain: None, `Box(W, H)` (`define domain W H`) or `Packed(area)`.
+        domain: None, `Box(W, H)` (`define domain W H`), `Packed(area)` or `Torus(W, H)`
+            (`create sqr_grid ... wrap`).
         division_limit: `define division_limit N` (None if absent).
         seed: `use seed N` (None if absent; the thesis's 0, "seed from the clock", is
             kept as 0 and, like None, means "unspecified").
@@ -125,7 +131,7 @@ class Listing:
     chemicals: tuple[Chemical, ...] = ()
     dt: float = 1.0
     stop: int | None = None
-    domain: Box | Packed | None = None
+    domain: Box | Packed | Torus | None = None
     division_limit: int | None = None
     seed: int | None = None
     commands: tuple[Command, ...] = ()
@@ -190,6 +196,7 @@ class Listing:
         polarised along +x (angle 0), since the thesis's Fig. 6.5 (Listing A.7) grows
         oriented patterns without one; `use polarity none` makes them unpolarised.
         `set` indices out of the cells created so far raise ValueError naming the line.
+        A listing with a `wrap` grid gives cells that live on its torus (`Cells.period`).
         """
         if not self.chemicals:
             raise ValueError(f"{self.name}: the listing defines no chemical; the cells need at least one")
@@ -197,7 +204,8 @@ class Listing:
         keys = jax.random.split(key, max(len(self.commands), 1))
         for command, command_key in zip(self.commands, keys):
             builder.execute(command, command_key)
-        return builder.cells()
+        cells = builder.cells()
+        return cells.with_period(self.domain.period) if isinstance(self.domain, Torus) else cells
 
     # ---- running ------------------------------------------------------------------
     def run(self, seed: int | None = None, steps: int | None = None, capacity: int | None = None, key=None,
@@ -313,7 +321,7 @@ class Listing:
             lines.append(f"define division_limit {self.division_limit}")
         if isinstance(self.domain, Box):
             lines.append(f"define domain {format_number(self.domain.width)} {format_number(self.domain.height)}")
-        elif isinstance(self.domain, Packed):
+        elif isinstance(self.domain, Packed):  # a Torus is written as its grid's `wrap`
             default = np.asarray(self.domain.area) == np.asarray(Packed().area)
             lines.append("define domain packed" + ("" if default else f" area {format_number(self.domain.area)}"))
         if self.dt != 1.0:
@@ -371,16 +379,16 @@ def _shipped() -> dict[str, Path]:
     for k, figure in enumerate(_FIGURES, start=1):
         path = LISTING_DIR / f"A{k:02d}_fig{figure}.txt"
         names[f"A.{k}"] = names[f"fig{figure}"] = path
-    for stem in ("fig5.1", "fig5.2", "fig7.20", "listing4.1", "listing5.1"):
+    for stem in ("fig5.1", "fig5.2", "fig7.13", "fig7.15", "fig7.20", "listing4.1", "listing5.1"):
         names[stem] = LISTING_DIR / f"{stem}.txt"
     return names
 
 
 LISTINGS: Mapping[str, Path] = _shipped()
 """The thesis's listings shipped with morphojax, by name: "A.1" ... "A.18" (Appendix A)
-and the same files by figure, "fig5.14" ... "fig7.21", plus "fig5.1", "fig5.2" and
-"fig7.20" (the listings printed with Figs. 5.1, 5.2 and 7.20), "listing4.1" and
-"listing5.1"."""
+and the same files by figure, "fig5.14" ... "fig7.21", plus "fig5.1", "fig5.2", "fig7.13",
+"fig7.15" and "fig7.20" (the listings printed with Figs. 5.1, 5.2, 7.13, 7.15 and 7.20; 7.13
+and 7.15 on a torus, `create sqr_grid 100 100 wrap`), "listing4.1" and "listing5.1"."""
 
 
 def listing_path(name: str) -> Path:

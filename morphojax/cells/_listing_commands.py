@@ -51,9 +51,9 @@ class UsePolarity:
 
 
 CREATE_KINDS = ("cell", "sqr_grid", "sqr_circle", "hex_grid", "hex_circle", "shape")
-_CREATE_OPTIONS = {  # Listing 4.4 (`wrap` is refused: toroidal wrapping is not supported)
+_CREATE_OPTIONS = {  # Listing 4.4 (`wrap`, a torus, is the square grid's alone)
     "cell": ("fixed",),
-    "sqr_grid": ("at", "dev", "fixed"),
+    "sqr_grid": ("at", "dev", "fixed", "wrap"),
     "sqr_circle": ("at", "dev", "fixed"),
     "hex_grid": ("at", "dev", "fixed"),
     "hex_circle": ("at", "dev", "fixed"),
@@ -66,7 +66,8 @@ class Create:
     """A `create` command (4.8.3). `size` is (x, y) for `cell`, (cols, rows) for the
     grids, (radius,) for the circles (in cell radii) and () for `shape`, whose letters
     are read from `file` (relative to the listing's directory). `dev` jitters every
-    position by a uniform draw of that amplitude per axis."""
+    position by a uniform draw of that amplitude per axis. `wrap` (square grids only) makes
+    the domain a torus of the grid's size, COLS x ROWS spacings, centred on the origin."""
 
     kind: str
     size: tuple = ()
@@ -74,6 +75,7 @@ class Create:
     at: tuple[float, float] = (0.0, 0.0)
     dev: float = 0.0
     fixed: bool = False
+    wrap: bool = False
     line: int = dataclasses.field(default=0, compare=False)
 
 

@@ -28,7 +28,8 @@ from ._listing_commands import (
 )
 from ._listing_tokens import CELL_VARIABLES, IDENTIFIER, NUMBER, ListingError, _Line
 from ._rules import Always, Chance, Change, Compare, Divide, Map, Polarize, React, Rule, Within, conc, diff
-from ._space import PACKING_AREA, Box, Packed
+from ._prepattern import SPACING
+from ._space import PACKING_AREA, Box, Packed, Torus
 
 ACTIONS = ("change", "react", "divide", "map", "polarize")
 MAX_CELLS = 10**7  # cells a listing may create: the thesis's largest makes a few thousand
@@ -51,6 +52,7 @@ class _Reader:
         self.slots: list = []
         self.warnings: list[str] = []
         self.chain: list = []  # the pending `and` lines: (line number, conditions, start, stop)
+        self.wrapped: int | None = None  # the line of the grid with `wrap`, if any
         self.lines = text.splitlines()
 
     def error(self, number: int, message: str) -> "ListingError":
@@ -124,6 +126,8 @@ class _Reader:
             else:
                 width = line.number("the domain's width (or 'packed')", low=0.0, low_open=True)
                 domain = Box(width, line.number("the domain's height", low=0.0, low_open=True))
+            if self.wrapped is not None:
+                line.fail(f"define domain: line {self.wrapped} already made the domain a torus ('wrap')")
             self.single(line, "domain", domain, "define domain")
         else:
             line.fail(f"unknown 'define {what}'; expected chemical, division_limit, domain or time_step")
@@ -179,15 +183,26 @@ class _Reader:
         options: dict = {}
         allowed = _CREATE_OPTIONS[kind]
         for option in line.options((*allowed, "wrap"), f"create {kind} takes {', '.join(allowed)}"):
-            if option == "wrap":  # read as an option only to be refused with its own message
-                line.fail("'wrap' (toroidal wrapping of a square grid) is not supported yet")
-            if option == "at":
+            if option == "wrap":
+                self.wrap(line, kind, size)
+                options["wrap"] = True
+            elif option == "at":
                 options["at"] = (line.number("the x of 'at'"), line.number("the y of 'at'"))
             elif option == "dev":
                 options["dev"] = line.number("the position dev", low=0.0)
             else:
                 options["fixed"] = True
         self.commands.append(Create(kind, size, file, line=line.lineno, **options))
+
+    def wrap(self, line: _Line, kind: str, size) -> None:
+        """`create sqr_grid COLS ROWS ... wrap` (4.8.3): the domain becomes the torus the
+        grid tiles, COLS x ROWS spacings (one per listing; no `define domain` beside it)."""
+        if kind != "sqr_grid":
+            line.fail(f"'wrap' (a toroidal domain) applies to sqr_grid only, not to create {kind}")
+        if "domain" in self.once:
+            line.fail(f"'wrap' makes the domain a torus, but line {self.once['domain']} already set the domain")
+        self.once["domain"] = self.wrapped = line.lineno
+        self.settings["domain"] = Torus(size[0] * SPACING, size[1] * SPACING)
 
     # ---- set (4.8.4) --------------------------------------------------------------
     def set(self, line: _Line) -> None:

@@ -17,6 +17,7 @@ from ..models import Bard
 from ._listing_commands import Create, SetCells, UseChemical, UsePolarity
 from ._listing_tokens import format_number
 from ._rules import Always, Chance, Change, Compare, Divide, Map, Polarize, React, Rule, Var, Within
+from ._space import Torus
 
 # ---- writing -------------------------------------------------------------------------
 
@@ -102,7 +103,7 @@ def format_command(command) -> str:
             size = "".join(f" {v}" if isinstance(v, int) else f" {format_number(v)}" for v in command.size)
         at = f" at {format_number(command.at[0])} {format_number(command.at[1])}" if tuple(command.at) != (0.0, 0.0) else ""
         dev = f" dev {format_number(command.dev)}" if command.dev else ""
-        return f"create {command.kind}{size}{at}{dev}{' fixed' if command.fixed else ''}"
+        return f"create {command.kind}{size}{at}{dev}{' fixed' if command.fixed else ''}{' wrap' if command.wrap else ''}"
     if isinstance(command, SetCells):
         cells = f"cell {command.first}" if command.first == command.last else f"cells {command.first} to {command.last}"
         chemical = f" chemical {command.chemical}" if command.chemical is not None else ""
@@ -132,9 +133,11 @@ def same_rules(a, b) -> bool:
 
 
 def domain_key(domain):
-    """A comparable form of a `Box` or `Packed` domain (None for none): its type and numbers."""
+    """A comparable form of a `Box`, `Packed` or `Torus` domain (None for none): its type and numbers."""
     if domain is None:
         return None
+    if isinstance(domain, Torus):  # its sides are static fields, not leaves
+        return "Torus", domain.period
     return type(domain).__name__, tuple(np.asarray(leaf, float).item() for leaf in jax.tree_util.tree_leaves(domain))
 
 
