@@ -296,6 +296,17 @@ _cells("thesis-fig7.16-cells", "A.16", "thesis Fig. 7.16 (Listing A.16)",
 _cells("thesis-fig7.18-cells", "A.17", "thesis Fig. 7.18 (Listing A.17)",
        "moray eel: saturated RD with body parts of different U rates and a V-producing gradient",
        quick=(300,), texture=True, edit=_fix_a17_window)
+_cells("thesis-fig7.13-cells", "fig7.13", "thesis Fig. 7.13 (listing of section 7.3)",
+       "giraffe: saturated RD (U and V limited at 6.3) from random concentrations on a 100x100 square grid of "
+       "cells wrapped into a torus (`create sqr_grid 100 100 wrap`); spots grow, absorb smaller ones and settle "
+       "into reticulated patches after 38,000 iterations. The listing as printed, on cells (eight neighbours within "
+       "the influence radius, harmonic-mean rates); the lattice preset `giraffe` approximates it with a stencil",
+       quick=(300,))
+_cells("thesis-fig7.15-cells", "fig7.15", "thesis Fig. 7.15 (listing of section 7.3)",
+       "nudibranch (Hypselodoris iacula): saturated RD (U limited at 5.2, Du 0.08) on a 100x100 square grid of "
+       "cells wrapped into a torus (`create sqr_grid 100 100 wrap`): a labyrinth with rare small dots that stay, "
+       "after 3,000 iterations. The listing as printed, on cells; the lattice preset `nudibranch` approximates it "
+       "with a stencil", quick=(300,))
 _cells("thesis-fig7.20", "fig7.20", "thesis Fig. 7.20 (listing of section 7.4)",
        "uniform growth with saturated RD (U limit 6.3): the pattern is kept and evolves", quick=(0, 300))
 _cells("thesis-fig7.21", "A.18", "thesis Figs. 7.21-7.22 (Listing A.18)",
