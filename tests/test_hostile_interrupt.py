@@ -1,6 +1,7 @@
-"""Ctrl-C exits 130 every time (issue 35): interrupted `morphojax resume` runs, several of them
-while JAX is compiling, each leaving its checkpoint whole. Each try starts a process that
-imports JAX and compiles, so the tries are few and the test is marked slow."""
+"""Ctrl-C exits 130 every time: interrupted `morphojax resume` runs, several of them while JAX
+is compiling, each leaving its checkpoint whole, and one whose interrupt lands where Python
+swallows it. Each try starts a process that imports JAX and compiles, so the tries are few
+and the tests are marked slow."""
 
 from __future__ import annotations
 
@@ -28,15 +29,41 @@ AS_FROM_A_SHELL = ("import runpy, signal, sys\n"
                    "runpy.run_module('morphojax.cli', run_name='__main__', alter_sys=True)\n")
 
 
-@pytest.mark.slow
-def test_ctrl_c_exits_130_every_time(tmp_path):
+# ... and, at the start of the run, a Ctrl-C whose handler runs inside a garbage-collection
+# callback, as one did when it came while JAX's `_xla_gc_callback` ran: CPython prints
+# "Exception ignored in: <function ...>" and the command ran on to its end
+LANDS_IN_A_GC_CALLBACK = AS_FROM_A_SHELL.replace("import runpy, signal, sys\n", """\
+import gc, os, runpy, signal, sys
+import morphojax
+armed = []
+def collecting(phase, info):
+    if armed and phase == "start":
+        armed.clear()
+        os.kill(os.getpid(), signal.SIGINT)  # handled at the next bytecode: still in here
+        return None
+gc.callbacks.append(collecting)
+run_experiment = morphojax.run_experiment
+def interrupted_run(*args, **kwargs):
+    armed.append(True)
+    gc.collect()
+    return run_experiment(*args, **kwargs)
+morphojax.run_experiment = interrupted_run
+""")
+
+
+def _long_start(folder):
+    """A checkpoint at step 0 of 2,000,000 steps of 50x50 (the preset's 10,000 end within the
+    interrupts' delays once compiled): every try is still running when its interrupt comes."""
     exp = mj.preset("fig4-r4.2")
-    # 2,000,000 steps of 50x50 (the preset's 10,000 end within the interrupts' delays once
-    # compiled): every try is still running when its interrupt comes
     exp = dataclasses.replace(exp, phases=(dataclasses.replace(exp.phases[0], steps=2_000_000),))
     state = mj.State.from_arrays([np.full((50, 50), 4.0), np.full((50, 50), 4.5)], names=("a", "b"))
-    start = mj.save_npz(tmp_path / "start.npz", state, {
+    return mj.save_npz(folder / "start.npz", state, {
         "experiment": exp.to_dict(), "run": {"seed": 0, "phase": 0, "phase_step": 0, "phase_origin": None}})
+
+
+@pytest.mark.slow
+def test_ctrl_c_exits_130_every_time(tmp_path):
+    start = _long_start(tmp_path)
     codes = []
     for k in range(TRIES):
         checkpoint = tmp_path / f"c{k}.npz"
@@ -61,3 +88,21 @@ def test_ctrl_c_exits_130_every_time(tmp_path):
     # still importing JAX, before the command began); 0: the run ended first; never -11 (SIGSEGV)
     assert all(code in (0, 130, -signal.SIGINT) for code in codes), codes
     assert codes.count(130) >= TRIES // 2, codes
+
+
+@pytest.mark.slow
+def test_a_ctrl_c_python_swallows_still_stops_the_command(tmp_path):
+    """An interrupt raised inside a garbage-collection callback never reaches the command;
+    the command line raises it again until it stops: exit 130 at once, not a run to its end."""
+    checkpoint = tmp_path / "c.npz"
+    shutil.copy(_long_start(tmp_path), checkpoint)
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", LANDS_IN_A_GC_CALLBACK, "resume", str(checkpoint),
+                           "--checkpoint-every", "20000", "--no-progress", "--quiet"],
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=300, check=False,
+                          env={**os.environ, "MORPHOJAX_CACHE_DIR": "off"})
+    assert "Exception ignored in: <function collecting" in proc.stderr, proc.stderr  # it did land there
+    assert proc.returncode == 130, (proc.returncode, proc.stderr[-2000:])
+    assert "morphojax resume: interrupted" in proc.stderr
+    assert time.perf_counter() - t0 < 60  # (the whole run, which it finished before, takes longer)
+    mj.load_npz(checkpoint)

@@ -20,6 +20,7 @@ from importlib.metadata import entry_points
 
 from .._compilation_cache import use_compilation_cache
 from . import _ca, _listing, _mesh, _run, _sweep
+from ._interrupt import Interrupts
 
 ENTRY_POINT_GROUP = "morphojax.commands"
 CORE_COMMANDS = (_run.register, _sweep.register, _ca.register, _mesh.register, _listing.register)
@@ -50,30 +51,44 @@ def main(argv=None) -> int:
     debug = getattr(args, "debug", False)
     if not getattr(args, "no_compilation_cache", False):
         use_compilation_cache()
-    try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt as err:  # Ctrl-C: a line saying what is kept, no traceback
-        print(f"morphojax {args.command}: {err or 'interrupted'}", file=sys.stderr)
-        if argv is None:  # the program itself (not a caller in Python): leave now, see `_leave`
-            _leave(130)
-        return 130
-    except ValueError as err:  # bad input: a clear message, no traceback
-        if debug:
+    with Interrupts() as interrupts:  # every Ctrl-C reaches the command, see `_interrupt`
+        try:
+            return int(args.func(args) or 0)
+        except KeyboardInterrupt as err:  # Ctrl-C: a line saying what is kept, no traceback
+            interrupts.stopping = True
+            return _interrupted(args, str(err) or "interrupted", argv)
+        except Exception as err:  # noqa: BLE001 (every error is an exit status; --debug re-raises it)
+            interrupts.stopping = True
+            if interrupts.interrupted:  # what an interrupt became (a host callback's runtime error)
+                return _interrupted(args, "interrupted", argv)
+            return _failed(args, err, debug)
+        except (SystemExit, GeneratorExit):
+            interrupts.stopping = True
             raise
-        print(f"morphojax {args.command}: error: {err}", file=sys.stderr)
-        return 2
-    except (SystemExit, GeneratorExit):
-        raise
-    except BrokenPipeError:  # the reader went away (`morphojax presets | head`): nothing to say
+
+
+def _interrupted(args, message: str, argv) -> int:
+    print(f"morphojax {args.command}: {message}", file=sys.stderr)
+    if argv is None:  # the program itself (not a caller in Python): leave now, see `_leave`
+        _leave(130)
+    return 130
+
+
+def _failed(args, err: Exception, debug: bool) -> int:
+    """The exit status of a command that raised `err`: 2 bad input (a ValueError: one line
+    saying what to change), 1 anything else (one line); --debug raises it for its traceback."""
+    if isinstance(err, BrokenPipeError):  # the reader went away (`morphojax presets | head`): nothing to say
         sys.stdout = open(os.devnull, "w")
         return 1
-    except Exception as err:  # anything else: one line, the traceback only with --debug
-        if debug:
-            raise
-        text = " ".join(str(err).split()) or "no message"
-        print(f"morphojax {args.command}: error: {type(err).__name__}: {text} (run `morphojax --debug "
-              f"{args.command} ...` for the traceback)", file=sys.stderr)
-        return 1
+    if debug:
+        raise err
+    if isinstance(err, ValueError):
+        print(f"morphojax {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    text = " ".join(str(err).split()) or "no message"
+    print(f"morphojax {args.command}: error: {type(err).__name__}: {text} (run `morphojax --debug "
+          f"{args.command} ...` for the traceback)", file=sys.stderr)
+    return 1
 
 
 def _leave(code: int) -> None:
