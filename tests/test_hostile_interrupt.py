@@ -39,6 +39,7 @@ armed = []
 def collecting(phase, info):
     if armed and phase == "start":
         armed.clear()
+        print("interrupted in a gc callback", file=sys.stderr, flush=True)
         os.kill(os.getpid(), signal.SIGINT)  # handled at the next bytecode: still in here
         return None
 gc.callbacks.append(collecting)
@@ -81,12 +82,18 @@ def test_ctrl_c_exits_130_every_time(tmp_path):
         except subprocess.TimeoutExpired:  # finished before the interrupt, or ignored it
             proc.kill()
             _, err = proc.communicate()
+        if proc.returncode == 0 and err.startswith("Exception ignored in: <function _xla_gc_callback"):
+            # swallowed by JAX's gc callback while Python imported morphojax (and JAX), before
+            # the command line began: the run went on to its end; outside morphojax's reach
+            codes.append("swallowed on import")
+            mj.load_npz(checkpoint)
+            continue
         codes.append(proc.returncode)
         assert "Traceback" not in err or proc.returncode == -signal.SIGINT, err
         mj.load_npz(checkpoint)  # whatever happened, the checkpoint reads
     # 130: interrupted (-SIGINT, which a shell also reports as 130: interrupted while Python was
     # still importing JAX, before the command began); 0: the run ended first; never -11 (SIGSEGV)
-    assert all(code in (0, 130, -signal.SIGINT) for code in codes), codes
+    assert all(code in (0, 130, -signal.SIGINT, "swallowed on import") for code in codes), codes
     assert codes.count(130) >= TRIES // 2, codes
 
 
@@ -101,8 +108,47 @@ def test_a_ctrl_c_python_swallows_still_stops_the_command(tmp_path):
                            "--checkpoint-every", "20000", "--no-progress", "--quiet"],
                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=300, check=False,
                           env={**os.environ, "MORPHOJAX_CACHE_DIR": "off"})
-    assert "Exception ignored in: <function collecting" in proc.stderr, proc.stderr  # it did land there
     assert proc.returncode == 130, (proc.returncode, proc.stderr[-2000:])
-    assert "morphojax resume: interrupted" in proc.stderr
+    lines = proc.stderr.splitlines()
+    assert lines[0] == "interrupted in a gc callback" and lines[-1].startswith("morphojax resume: interrupted"), lines
+    assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr, proc.stderr
     assert time.perf_counter() - t0 < 60  # (the whole run, which it finished before, takes longer)
     mj.load_npz(checkpoint)
+
+
+# a command whose compiled program's host callback is running when the Ctrl-C comes (as a
+# fit's loss recorder is): its KeyboardInterrupt becomes the computation's runtime error
+IN_A_HOST_CALLBACK = """\
+import os, signal, sys, time
+import jax
+import morphojax.cli as cli
+signal.signal(signal.SIGINT, signal.default_int_handler)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])
+def record(x):
+    os.kill(os.getpid(), signal.SIGINT)
+@jax.jit
+def step(x):
+    jax.debug.callback(record, x)
+    return x + 1
+def command(args):
+    step(1.0).block_until_ready()
+    jax.effects_barrier()
+    time.sleep(30)
+    return 0
+parser = cli.build_parser
+def build():
+    p = parser()
+    for action in p._subparsers._group_actions:
+        action.choices["presets"].set_defaults(func=command)
+    return p
+cli.build_parser = build
+sys.exit(cli.main(["presets"]))
+"""
+
+
+def test_a_ctrl_c_in_a_host_callback_exits_130():
+    """Not exit 1 with JAX's runtime error ("CpuCallback error") and its logged traceback."""
+    proc = subprocess.run([sys.executable, "-c", IN_A_HOST_CALLBACK], stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True, timeout=120, check=False)
+    assert proc.returncode == 130, (proc.returncode, proc.stderr[-2000:])
+    assert proc.stderr.strip() == "morphojax presets: interrupted", proc.stderr[-2000:]

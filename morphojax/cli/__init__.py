@@ -47,28 +47,34 @@ def main(argv=None) -> int:
     """Run the command line `argv` (default: `sys.argv[1:]`); returns the exit status:
     0 done, 2 bad input (a ValueError: one line saying what to change), 1 any other error
     (one line; `morphojax --debug ...` shows its traceback), 130 interrupted."""
-    args = build_parser().parse_args(argv)
-    debug = getattr(args, "debug", False)
-    if not getattr(args, "no_compilation_cache", False):
-        use_compilation_cache()
-    with Interrupts() as interrupts:  # every Ctrl-C reaches the command, see `_interrupt`
+    with Interrupts() as interrupts:  # from the start, every Ctrl-C reaches the command: see `_interrupt`
+        try:
+            args = build_parser().parse_args(argv)  # (loads the commands other packages add)
+            if not getattr(args, "no_compilation_cache", False):
+                use_compilation_cache()
+        except KeyboardInterrupt:
+            interrupts.stopping = True
+            return _interrupted("morphojax", "interrupted", argv)
+        except (SystemExit, GeneratorExit):
+            interrupts.stopping = True
+            raise
         try:
             return int(args.func(args) or 0)
         except KeyboardInterrupt as err:  # Ctrl-C: a line saying what is kept, no traceback
             interrupts.stopping = True
-            return _interrupted(args, str(err) or "interrupted", argv)
+            return _interrupted(f"morphojax {args.command}", str(err) or "interrupted", argv)
         except Exception as err:  # noqa: BLE001 (every error is an exit status; --debug re-raises it)
             interrupts.stopping = True
             if interrupts.interrupted:  # what an interrupt became (a host callback's runtime error)
-                return _interrupted(args, "interrupted", argv)
-            return _failed(args, err, debug)
+                return _interrupted(f"morphojax {args.command}", "interrupted", argv)
+            return _failed(args, err, getattr(args, "debug", False))
         except (SystemExit, GeneratorExit):
             interrupts.stopping = True
             raise
 
 
-def _interrupted(args, message: str, argv) -> int:
-    print(f"morphojax {args.command}: {message}", file=sys.stderr)
+def _interrupted(who: str, message: str, argv) -> int:
+    print(f"{who}: {message}", file=sys.stderr)
     if argv is None:  # the program itself (not a caller in Python): leave now, see `_leave`
         _leave(130)
     return 130
