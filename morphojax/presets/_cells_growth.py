@@ -91,27 +91,31 @@ class GrowthPreset(CellPreset):
         return mj.load_listing(_sooner(listing.text), name=listing.name)
 
 
-def _regions(position: np.ndarray, value: np.ndarray, reach: float = 2.5) -> int:
-    """Connected regions of the cells above the middle of `value`'s range, cells within
-    `reach` (1.25 spacings of the hexagonal packing) joined."""
+def _regions(position: np.ndarray, value: np.ndarray, reach: float = 2.5) -> tuple[int, float]:
+    """The connected regions of the cells above the middle of `value`'s range (cells within
+    `reach`, 1.25 spacings of the hexagonal packing, joined) and the border: the fraction
+    of the pairs within `reach` that join a high cell to a low one."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     high = value > 0.5 * (value.min() + value.max())
     pairs = cKDTree(position).query_pairs(reach, output_type="ndarray")
-    pairs = pairs[high[pairs[:, 0]] & high[pairs[:, 1]]]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(value),) * 2)
+    mixed = high[pairs[:, 0]] != high[pairs[:, 1]]
+    pairs_high = pairs[high[pairs[:, 0]] & high[pairs[:, 1]]]
+    graph = coo_matrix((np.ones(len(pairs_high)), (pairs_high[:, 0], pairs_high[:, 1])), shape=(len(value),) * 2)
     _, label = connected_components(graph, directed=False)
-    return len(np.unique(label[high]))
+    return len(np.unique(label[high])), float(mixed.mean())
 
 
 def transition(before, after, reagent) -> dict:
     """How a growing tissue's pattern of `reagent` changed from the cells `before` to
-    `after`: the cell counts, the high regions of each (`_regions`) and `kept`, the
-    correlation between each cell's value before and the value after at its place scaled
-    about the centre by the growth of the tissue's RMS radius (near 1: the same pattern,
-    enlarged)."""
+    `after`: the cell counts, the high regions of each and their `border` (`_regions`:
+    under enlargement a kept pattern's border falls, one rebuilt at its wavelength keeps
+    it, a roughened one's rises) and `kept`, the correlation between each cell's value
+    before and the value after at its place scaled about the centre by the growth of the
+    tissue's RMS radius (near 1: the same pattern, enlarged uniformly; growth at the rim,
+    where cells have room to divide, lowers it even for a kept pattern)."""
     from scipy.spatial import cKDTree
 
     def arrays(cells):
@@ -124,8 +128,9 @@ def transition(before, after, reagent) -> dict:
     scale = np.sqrt((p1 ** 2).sum(1).mean() / (p0 ** 2).sum(1).mean())
     _, nearest = cKDTree(p1).query(p0 * scale)
     kept = float(np.corrcoef(v0, v1[nearest])[0, 1]) if v0.std() > 0 and v1.std() > 0 else float("nan")
-    return {"reagent": reagent, "cells": [len(v0), len(v1)], "regions": [_regions(p0, v0), _regions(p1, v1)],
-            "kept": round(kept, 3)}
+    (n0, b0), (n1, b1) = _regions(p0, v0), _regions(p1, v1)
+    return {"reagent": reagent, "cells": [len(v0), len(v1)], "regions": [n0, n1],
+            "border": [round(b0, 3), round(b1, 3)], "kept": round(kept, 3)}
 
 
 def _run_growth(item: GrowthPreset, seed: int, quick: bool, out: Path) -> dict:
