@@ -127,7 +127,7 @@ def make_step(model: AbstractModel, domain: AbstractDomain, dt, cfg: Config, gro
             terms = domain.active_diffusion(c.p, rates, c.size) if cfg.dynamic else domain.diffusion(c.p, rates)
             new = update(acting, x, terms, production, mask)
         else:
-            new = clamp(acting, advance(acting, x), production)
+            new = clamp(acting, advance(acting, x, carried=c.p), production)  # the stencil from the ghost cells
         p = domain.write(c.p, new, c.size, cfg.dynamic)
         size, overflow = c.size, c.overflow
         if growth is not None:

@@ -81,11 +81,12 @@ def make_solver(domain, shape):
 
 
 def make_advance(order: int, domain, dt, bounds, shape):
-    """advance(acting model, x, h=dt) -> x after one IMEX step of `order` (1: SBDF1, 2: ARS
-    (2,2,2)) in cell space, each implicit stage solved by conjugate gradients."""
+    """advance(acting model, x, h=dt, carried=None) -> x after one IMEX step of `order` (1:
+    SBDF1, 2: ARS (2,2,2)) in cell space, each implicit stage solved by conjugate gradients
+    (`carried` is not needed: the operator is applied to x as the solves apply it)."""
     solve, apply = make_solver(domain, shape)
 
-    def advance(acting, x, h=dt):
+    def advance(acting, x, h=dt, carried=None):
         reaction, limit = reaction_and_limit(acting, bounds, domain.ndim)
         nx = reaction(x)
         if order == 1:  # (1 - h L) x1 = x + h N(x)
