@@ -11,10 +11,10 @@ kept); the table to benchmarks/results/gallery_cells.md.
 from __future__ import annotations
 
 import argparse
+import shutil
 import tempfile
 import time
 from pathlib import Path
-import shutil
 
 import morphojax as mj
 
@@ -43,7 +43,8 @@ def main():
             shutil.copy(Path(tmp) / f"{name}.png", out / f"{name}.png")
         seconds = time.perf_counter() - t0
         rows.append((name, mj.PRESETS[name].figure, seed, summary["iterations"], summary["cells"], seconds))
-        print(f"{name}: {summary['cells']} cells at {summary['iterations']} ({seconds:.1f} s)", flush=True)
+        measured = f", {summary['transition']}" if summary.get("transition") else ""  # thesis-fig6.11-*
+        print(f"{name}: {summary['cells']} cells at {summary['iterations']} ({seconds:.1f} s){measured}", flush=True)
     if args.quick:
         return
     lines = ["# The thesis's cell experiments at full size", "",
