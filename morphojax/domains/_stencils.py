@@ -174,9 +174,10 @@ def symbol(stencil: str, *cosines):
     return (8.0 * (cos_r + cos_c) + 4.0 * cos_r * cos_c - 20.0) / 6.0
 
 
-def eigenvalues(stencil: str, boundary: str, shape) -> np.ndarray:
+def eigenvalues(stencil: str, boundary: str, shape, full: bool = False) -> np.ndarray:
     """The stencil's eigenvalues (float64, cells^-2) on a lattice of `shape` (one length per
-    axis), laid out as the coefficients of `forward_transform`.
+    axis), laid out as the coefficients of `forward_transform` (with `full` and "wrap", of
+    the complex FFT: every k on every axis).
 
     "wrap": the waves exp(2 pi i sum_a k_a x_a / N_a) diagonalise every stencil on the
     torus, with phases t = 2 pi k / N; the real FFT keeps k <= N / 2 on the last axis.
@@ -188,7 +189,7 @@ def eigenvalues(stencil: str, boundary: str, shape) -> np.ndarray:
     phases = []
     for axis, n in enumerate(shape):
         if boundary == "wrap":
-            t = 2.0 * np.pi * (np.fft.rfftfreq(n) if axis == len(shape) - 1 else np.fft.fftfreq(n))
+            t = 2.0 * np.pi * (np.fft.rfftfreq(n) if axis == len(shape) - 1 and not full else np.fft.fftfreq(n))
         else:
             t = np.pi * np.arange(n) / n
         phases.append(np.cos(t).reshape([-1 if a == axis else 1 for a in range(len(shape))]))

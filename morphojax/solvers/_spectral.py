@@ -1,8 +1,9 @@
 """Exponential (ETDRK) and implicit-explicit (IMEX) steps on the stencil's own eigenbasis.
 
 On a lattice (1D, 2D or 3D) with uniform rates, diffusion is the linear operator L = D_i S for
-species i, S the stencil, and S is diagonal in a known basis: the real FFT for "wrap" and
-the DCT-II for "no-flux" (`Lattice.eigenvalues`, exact for the stencil). There each mode
+species i, S the stencil, and S is diagonal in a known basis: the FFT for "wrap" (one
+complex FFT per pair of species, see `_basis`) and the DCT-II for "no-flux"
+(`Lattice.eigenvalues`, exact for the stencil). There each mode
 evolves by its eigenvalue z / dt with z = dt D_i lambda <= 0, so diffusion can be taken
 exactly (exponential time differencing, Cox and Matthews, J. Comput. Phys. 176, 2002) or
 implicitly, and only the reaction N is explicit. dt is then bounded by the reaction's
@@ -25,6 +26,7 @@ from ..domains import Lattice
 from ..models import AbstractModel, per_species
 from . import _implicit
 from ._base import AbstractSolver, rate_shape, reaction_and_limit
+from ._basis import Eigenbasis
 from ._phi import phi
 
 
@@ -105,12 +107,13 @@ class _TransformSolver(AbstractSolver):
         estimate). `carried`, the step's carried (ghost-padded) layout of x, gives the
         stencil at x from the ghost cells the loop already holds, as Euler reads it: without
         it x is padded again (measured on fig4-r40 50x50: three more kernels a step)."""
-        lam = jnp.asarray(domain.eigenvalues(shape), dt.dtype)
+        basis = Eigenbasis(domain, shape, model.n_species)
+        lam = jnp.asarray(basis.eigenvalues, dt.dtype)
         ndim = domain.ndim
 
         def coefficients(m, h):
             z = h * _rate_vector(m).reshape((-1,) + (1,) * ndim) * lam
-            return self.coefficients(z, h)
+            return basis.multipliers(self.coefficients(z, h))
 
         # a fixed step's coefficients are computed once, outside the loop
         fixed = None if self.adaptive or _state_dependent(model) else coefficients(model, dt)
@@ -125,8 +128,7 @@ class _TransformSolver(AbstractSolver):
                 return reaction(x) + jnp.stack(domain.diffusion(carried, rates))
 
             co = fixed if fixed is not None else coefficients(acting, h)
-            high, low = self.advance(co, x, reaction, euler_rate, domain.transform,
-                                     lambda c: domain.inverse_transform(c, shape), limit)
+            high, low = self.advance(co, x, reaction, euler_rate, basis.fwd, basis.inv, limit)
             return (high, low) if self.adaptive else high
 
         return advance
