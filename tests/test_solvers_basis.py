@@ -63,6 +63,7 @@ def test_packed_steps_match_the_real_transforms(shape, stencil, species):
 
 def test_the_rule_packs_even_species_on_wrap_only():
     wrap, noflux = mj.Lattice("nine-point", "wrap"), mj.Lattice("nine-point", "no-flux")
-    assert Eigenbasis(wrap, (5, 6), 2).packed
+    assert Eigenbasis(wrap, (5, 6), 2).packed and Eigenbasis(wrap, (5, 6), 4).packed
+    assert [s.packs for s in SOLVERS] == [True, True, False, True, False, False]
     assert not Eigenbasis(wrap, (5, 6), 3).packed
     assert not Eigenbasis(noflux, (5, 6), 2).packed

@@ -15,10 +15,13 @@ species.
 
 The rule kept here: on "wrap" with an even number 2m of species, species j and m + j share
 one complex FFT (contiguous halves, which XLA fuses into the step's other loops); "no-flux"
-(the DCT) and an odd number of species use the domain's own transforms. On a CPU one
-complex FFT of the pair measured faster than the two real ones, one call instead of a batch
-of two (fig4-r40's ETDRK1 step, 50x50: see benchmarks/results/solvers.md). The packed
-result differs from the unpacked by float32 rounding of the larger species of the pair.
+(the DCT) and an odd number of species use the domain's own transforms. Each packed
+multiply reflects its coefficients (z(-k): two small loops), so packing pays only where a
+step multiplies once per transform: ETDRK1, ETDRK2 and IMEX1 pack (measured on fig4-r40's
+50x50 lattice, interleaved in one process: 0.75-0.86x the step's time with the ghost-cell
+stencil), ETDRK4 and IMEX2, which combine several multipliers per transform, do not (1.3x
+slower packed); the solver says which (`packs`). The packed result differs from the
+unpacked by float32 rounding of the larger species of the pair.
 """
 
 from __future__ import annotations
@@ -62,10 +65,10 @@ class Eigenbasis:
     layout, and `multipliers` to turn per-species multipliers on that layout into what
     multiplies the coefficients (`*`, as arrays do)."""
 
-    def __init__(self, domain, shape, n_species: int, pack: bool | None = None):
-        """`pack`: None for the rule above; False for the domain's transforms (a test's reference)."""
+    def __init__(self, domain, shape, n_species: int, pack: bool = True):
+        """`pack`: pairs of species where the rule above allows; False: the domain's transforms."""
         self.shape, self.ndim = tuple(int(n) for n in shape), len(shape)
-        self.packed = domain.boundary == "wrap" and n_species % 2 == 0 and pack is not False
+        self.packed = pack and domain.boundary == "wrap" and n_species % 2 == 0
         if self.packed:
             self.eigenvalues = _stencils.eigenvalues(domain.stencil, domain.boundary, self.shape, full=True)
         else:

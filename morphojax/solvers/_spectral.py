@@ -101,13 +101,19 @@ class _TransformSolver(AbstractSolver):
         """Whether the step size follows an embedded error estimate (`rtol` given)."""
         return self.rtol is not None
 
+    @property
+    def packs(self) -> bool:
+        """Whether pairs of species share one complex FFT on "wrap" (`_basis`): where the
+        step multiplies once per transform."""
+        return False
+
     def make_advance(self, model, domain: Lattice, dt, bounds, shape):
         """advance(acting model, x, h=dt, carried=None) -> x after one step of h, before
         sources and the clamp; with `adaptive`, (x after the step, the embedded lower-order
         estimate). `carried`, the step's carried (ghost-padded) layout of x, gives the
         stencil at x from the ghost cells the loop already holds, as Euler reads it: without
         it x is padded again (measured on fig4-r40 50x50: three more kernels a step)."""
-        basis = Eigenbasis(domain, shape, model.n_species)
+        basis = Eigenbasis(domain, shape, model.n_species, pack=self.packs)
         lam = jnp.asarray(basis.eigenvalues, dt.dtype)
         ndim = domain.ndim
 
@@ -186,6 +192,10 @@ class ETDRK(_TransformSolver):
                  max_steps: int = 100_000):
         self._configure((1, 2, 4), order, rtol, atol, max_steps)
 
+    @property
+    def packs(self) -> bool:
+        return self.order <= 2
+
     def coefficients(self, z, dt):
         if self.order == 1:
             return {"p1": dt * phi(z, 1)}
@@ -253,6 +263,10 @@ class IMEX(_TransformSolver):
         if _diagonal(domain, model, _fields_like(model, shape, dt.dtype)):
             return super().make_advance(model, domain, dt, bounds, shape)
         return _implicit.make_advance(self.order, domain, dt, bounds, shape)
+
+    @property
+    def packs(self) -> bool:
+        return self.order == 1
 
     def coefficients(self, z, dt):
         if self.order == 1:
