@@ -40,6 +40,9 @@ CASES = {
     "negative-spots": ("turing", {"ratio": 5.0, "scale": 1.5}, ["ratio", "scale"]),
     "bounded-lb": ("turing", {"ratio": 20.0, "scale": 1.0, "lower_b": 3.5}, ["ratio", "scale", "lower_b"]),
     "bounded-ua": ("turing", {"ratio": 6.0, "scale": 1.5, "upper_a": 6.0}, ["ratio", "scale", "upper_a"]),
+    # the limit binds harder and trades against a larger ratio (the identifiability suite's
+    # second case, whose interval [24, 50] missed the true ratio 20)
+    "saturated-ua": ("turing", {"ratio": 20.0, "scale": 1.2, "upper_a": 4.4}, ["ratio", "scale", "upper_a"]),
     "gray-scott": ("gray-scott", {"feed": 0.0367, "kill": 0.0649, "diffusion_scale": 0.5}, None),
     "bard": ("bard", {"alpha": 16.0, "beta": 12.0, "diffusion_scale": 0.5}, None),
     "oriented": ("anisotropic-turing", {"ratio": 20.0, "scale": 1.2, "angle": 0.6}, None),

@@ -71,6 +71,9 @@ def register(subparsers) -> None:
     p.add_argument("--screen", default=D["screen"], choices=("heldout", "loss"),
                    help="with --model auto, order the screened families by their samples' distance to the held-out "
                         "tile (heldout, the default) or by the penalised training loss (loss)")
+    p.add_argument("--no-refine", dest="refine", action="store_false", default=D["refine"],
+                   help="return the fit of the training half of a split photo as it was judged, without refining "
+                        "it on the whole photo (faster; wider intervals)")
     p.add_argument("--json", type=Path, required=True, help="output JSON report")
     p.add_argument("--preview", type=Path, default=None,
                    help="output picture: target | fit | loss curve | fit in the photo's colours")
@@ -155,7 +158,7 @@ def run(args) -> int:
                          seed=args.seed, n_design=args.design,
                          rounds=args.rounds, keep=args.keep, method=args.method, max_steps=args.max_steps,
                          stats=fitting.StatsConfig(binarise=args.binarise, orientation=args.orientation),
-                         progress=args.progress, screen=args.screen)
+                         progress=args.progress, screen=args.screen, refine=args.refine)
     result.save_json(args.json)
     for path, write in ((args.preview, result.preview), (args.sample, result.save_sample),
                         (args.render, lambda f: result.render(f, size=1024))):

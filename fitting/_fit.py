@@ -23,6 +23,12 @@
    statistics of target and fit, the noise floor (the distance expected between the target
    and the fit if the target were a sample of the fitted model), region statistics, timings
    and the loss history.
+6. Intervals (`fitting._uncertainty`). Where their region's walk finds a loss below the
+   fit's, the local search goes on from that point once, and the report is made again.
+
+The stages after the design share a `FitState`, kept on the result: `refine` goes on from a
+fit's best point against another target (the pipeline's whole target after a fit on its
+training half).
 """
 
 from __future__ import annotations
@@ -48,6 +54,34 @@ METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 LIMIT_SCAN = 48  # points of a fitted limit's scan, about 2% of its bounds apart
 BAND_RISE = 1.1  # a scan's minimum is a band when both its neighbours score 10% more (`_is_band`)
 DEGENERATE_PENALTY = 1e6  # added to a design point's loss when it is off the target's scale
+
+
+def target_stats(field, stats) -> dict:
+    """The target's statistics as the fit compares them: `texture_stats`, with the
+    wavelength the pattern's (the statistics' soft argmax of a photo's spectrum is pulled
+    toward hair and sensor noise, the cheetah: 6.5 cells against the spots' 9.1), the peak
+    of its spectrum with the shading removed (`fitting._verdict.target_wavelength`, within
+    9% of the soft argmax on clean simulations)."""
+    tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(field, jnp.float32), stats))
+    pattern = target_wavelength(field)
+    if np.isfinite(pattern):
+        tstats["wavelength"] = np.asarray(pattern, tstats["wavelength"].dtype)
+    return tstats
+
+
+@dataclasses.dataclass(frozen=True)
+class FitState:
+    """What a fit's stages after the design share, kept on its result (`FitResult.resume`)
+    so that the fit can go on from its best point against another target (`refine`)."""
+
+    sim: Simulator
+    space: ParamSpace
+    stats: object  # the StatsConfig
+    keys: object  # the fit's seeds (the local stage's and the report's)
+    noise: dict  # each statistic's seed-to-seed spread at the best design point
+    length: int | None  # the family's length parameter's index, for the move to the target's scale
+    length_power: float
+    settings: dict  # method, max_steps, learning_rate, fallback, seeds, seed, noise_seeds
 
 
 def _as_template(model, shape):
@@ -213,14 +247,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     if rates:  # fitted growth rates: compare the window every point reaches, check the room
         sim = dataclasses.replace(sim, compare=sim.final_shape({names[i]: space.low[i] for i in rates}))
         sim.check_capacity({names[i]: space.high[i] for i in rates})
-    tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(target.field, jnp.float32), stats))
-    # the pattern's scale, not the fur's: the statistics' soft argmax of a photo's spectrum is
-    # pulled toward hair and sensor noise (the cheetah: 6.5 cells against the spots' 9.1), so
-    # the target's wavelength is the peak of its spectrum with the shading removed
-    # (`fitting._verdict.target_wavelength`, within 9% of the soft argmax on clean simulations)
-    pattern = target_wavelength(target.field)
-    if np.isfinite(pattern):
-        tstats["wavelength"] = np.asarray(pattern, tstats["wavelength"].dtype)
+    tstats = target_stats(target.field, stats)  # the pattern's scale, not the fur's
     keys = jax.random.split(jax.random.key(seed + 1), seeds)
 
     from ._progress import make_progress
@@ -365,10 +392,28 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     noise = jax.tree_util.tree_map(np.asarray, noise_of(per_seed))
     timings["noise"] = time.perf_counter() - t0
 
-    # ---- local stage ------------------------------------------------------------------
+    state = FitState(sim, space, stats, keys, noise, length, length_power,
+                     {"method": method, "max_steps": max_steps, "learning_rate": learning_rate, "fallback": fallback,
+                      "seeds": seeds, "seed": seed, "noise_seeds": noise_seeds})
     t0 = time.perf_counter()
-    args = (sim, space, stats, keys, tstats, noise)
     starts = [space.to_free(thetas[i]) for i in order[: min(keep, len(order))]]
+    finals = _local_stage(state, tstats, starts, rec)
+    timings["local"] = time.perf_counter() - t0
+    settings = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
+                "requested_method": method, "seeds": seeds, "design_seeds": len(design_keys), "seed": seed,
+                "design": design, "n_design": n_design, "rounds": rounds, "keep": keep, "max_steps": max_steps}
+    return _conclude(target, state, tstats, finals, rec, timings, t_start, settings, design_rows, [], intervals)
+
+
+def _local_stage(state: FitState, tstats, starts, rec) -> list:
+    """The local search from each start (free coordinates) against `tstats`: a list of
+    (loss, z, method used, start loss), best first. Nelder-Mead takes over where the
+    gradient method does not improve on its start by 1%, and a search that ends off the
+    target's scale from a start on it keeps the start."""
+    s = state.settings
+    method, max_steps = s["method"], s["max_steps"]
+    sim, space, stats, keys, noise = state.sim, state.space, state.stats, state.keys, state.noise
+    args = (sim, space, stats, keys, tstats, noise)
     finals = []
     for k, z0 in enumerate(starts):
         z0 = jnp.asarray(z0, jnp.float32)
@@ -377,10 +422,10 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
             finals.append((float("nan"), np.asarray(z0), "design", float("nan")))
             continue
         start_loss, start_lam = _loss_of(sim, space, stats, z0, keys, tstats, noise)
-        z, used = _local(method, args, z0, max_steps, learning_rate, rec)
+        z, used = _local(method, args, z0, max_steps, s["learning_rate"], rec)
         end_loss, end_lam = _loss_of(sim, space, stats, z, keys, tstats, noise)
-        if fallback and method != "nelder-mead" and max_steps > 0 and not end_loss < 0.99 * start_loss:
-            z_nm, _ = _local("nelder-mead", args, z0, max_steps, learning_rate, rec)
+        if s["fallback"] and method != "nelder-mead" and max_steps > 0 and not end_loss < 0.99 * start_loss:
+            z_nm, _ = _local("nelder-mead", args, z0, max_steps, s["learning_rate"], rec)
             nm_loss, nm_lam = _loss_of(sim, space, stats, z_nm, keys, tstats, noise)
             if nm_loss < end_loss:
                 z, end_loss, end_lam, used = z_nm, nm_loss, nm_lam, f"{used}->nelder-mead"
@@ -388,15 +433,26 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         if off_scale(end_lam, lam_t) and not off_scale(start_lam, lam_t):  # walked off the pattern's scale
             z, end_loss, used = z0, start_loss, f"{used} (ended off the target's scale: kept the start)"
         finals.append((end_loss, np.asarray(z), used, start_loss))
-    timings["local"] = time.perf_counter() - t0
-
-    # ---- report -----------------------------------------------------------------------
-    t0 = time.perf_counter()
     finals.sort(key=lambda f: f[0] if np.isfinite(f[0]) else np.inf)
+    return finals
+
+
+def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, settings, design_rows, history,
+              intervals, restart: bool = True) -> FitResult:
+    """The report stage from the local stage's `finals`: the best point moved to the
+    target's scale where the likelihood cannot tell (`fitting._scale`), re-simulated for the
+    noise floor, the samples and the region statistics, then the intervals; the result.
+    Where the intervals' region walk finds a lower loss than the fit's (a curved valley the
+    local search stopped in, as a saturation limit traded against the ratio), the local
+    search goes on from there once (`restart`) and the report is made again if it ends lower."""
+    t0 = time.perf_counter()
+    sim, space, stats, keys, noise = state.sim, state.space, state.stats, state.keys, state.noise
+    names, seeds, length = list(space.names), state.settings["seeds"], state.length
     best_loss, z_best, used, _ = finals[0]
     theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
-    floor_keys = jax.random.split(jax.random.key(seed + 3), len(noise_keys))  # same batch: no new compile
+    # the floor's seeds: as many as the noise's, so the same compiled batch serves both
+    floor_keys = jax.random.split(jax.random.key(state.settings["seed"] + 3), max(state.settings["noise_seeds"], 3))
     runs = {}  # the fit's own seeds' run at a point, done once for the floor and the scale's move
 
     def run_at(theta):
@@ -436,7 +492,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         threshold = snap_threshold(seeds, best_loss / floor if floor > 0 else 1.0)
         snap = snap_to_wavelength(
             np.asarray(theta_best, np.float64), snap_loss, snap_wavelength, loss_and_scale,
-            target_wavelength=float(tstats["wavelength"]), index=length, power=length_power,
+            target_wavelength=float(tstats["wavelength"]), index=length, power=state.length_power,
             low=float(space.low[length]), high=float(space.high[length]), threshold=threshold)
         if snap["moved"]:
             theta_best = jnp.asarray(snap["theta"], jnp.float32)
@@ -451,22 +507,32 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
     score = float(distance(fit_stats, tstats, stats))
     timings["report"] = time.perf_counter() - t0
-    ivals, undetermined, correlated = {}, [], []
+    ivals, undetermined, correlated, better = {}, [], [], None
     if intervals:
         from ._uncertainty import interval_report
 
         t0 = time.perf_counter()
         rec.stage = "intervals"
         inflate = best_loss / floor if floor > 0 and np.isfinite(best_loss) else 1.0
-        ivals, undetermined, correlated = interval_report(sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate,
-                                              seed=seed, floor=floor, floor_losses=floor_losses)
+        ivals, undetermined, correlated, better = interval_report(
+            sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate, seed=state.settings["seed"],
+            floor=floor, floor_losses=floor_losses)
         timings["intervals"] = time.perf_counter() - t0
+    if better is not None and restart:
+        t0 = time.perf_counter()
+        rec.stage = "restart"
+        again = _local_stage(state, tstats, [space.to_free(jnp.asarray(better[0], jnp.float32))], rec)
+        timings["restart"] = time.perf_counter() - t0
+        if again[0][0] < best_loss:
+            result = _conclude(target, state, tstats, sorted(again + finals, key=lambda f: f[0] if np.isfinite(f[0]) else np.inf), rec, timings,
+                               t_start, settings, design_rows, history, intervals, restart=False)
+            result.config["restarted"] = {"from": params, "loss": float(best_loss), "region_loss": better[1],
+                                          "final_loss": float(again[0][0])}
+            return result
     timings["total"] = time.perf_counter() - t_start
-    history = [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]
-    config = {"fit": names, "bounds": {n: [lo, hi] for n, lo, hi in zip(names, space.low, space.high)},
-              "method": used, "requested_method": method, "seeds": seeds, "design_seeds": len(design_keys),
-              "seed": seed, "design": design, "n_design": n_design, "rounds": rounds, "keep": keep,
-              "max_steps": max_steps,
+    history = history + [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]  # `history`: earlier stages'
+
+    config = {**settings, "method": used,
               "scale_snap": None if snap is None else {
                   "moved": snap["moved"], "start_wavelength": snap_wavelength, "wavelength": snap["wavelength"],
                   "target_wavelength": float(tstats["wavelength"]), "start_loss": snap_loss,
@@ -480,8 +546,45 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         timings=timings, stats={"target": _tolist(tstats), "fit": _tolist(fit_stats), "noise": _tolist(noise)},
         report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample, "samples": samples},
         config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
-        correlated=correlated,
+        correlated=correlated, resume=state,
     )
+
+
+def refine(result: FitResult, target, *, intervals: bool = True, progress=None) -> FitResult:
+    """The fit gone on from its best point against another `Target`: the local search and
+    the report stage again, with the first fit's simulator, parameter space, seeds and noise
+    scales (`result.resume`). `fitting.fit` fits the training half of a split target, judges
+    that fit on the held-out half, then refines it on the whole target, so that the
+    parameters and intervals use all of it (`fitting._pipeline`)."""
+    state = result.resume
+    if state is None:
+        raise ValueError("refine needs a full fit's result (a screen's keeps no fit state)")
+    from ._progress import make_progress
+
+    t_start = time.perf_counter()
+    tstats = target_stats(target.field, state.stats)
+    bar = make_progress(progress, f"refine {result.family}", 2 * max(int(state.settings["max_steps"]), 1))
+    rec = _Recorder(bar)
+    rec.stage = "refine"
+    _RECORDERS.append(rec)
+    try:
+        start = state.space.to_free(jnp.asarray([result.params[n] for n in state.space.names], jnp.float32))
+        finals = _local_stage(state, tstats, [start], rec)
+        timings = {k: v for k, v in result.timings.items() if k not in ("report", "intervals", "total")}
+        timings["refine"] = time.perf_counter() - t_start
+        settings = {k: v for k, v in result.config.items()
+                    if k not in ("method", "scale_snap", "simulator", "stats", "starts")}  # _conclude's own
+        refined = _conclude(target, state, tstats, finals, rec, timings, t_start, settings, result.design,
+                            result.history, intervals)
+    finally:
+        _RECORDERS.remove(rec)
+        if bar is not None:
+            bar.close()
+    refined.timings["total"] += result.timings.get("total", 0.0)  # the training fit's stages and these
+    refined.family, refined.palette, refined.simulator = result.family, target.palette(), result.simulator
+    refined.config["refined"] = {"from": dict(result.params), "training_loss": result.loss,
+                                 "training_noise_floor": result.noise_floor, "method": refined.config["method"]}
+    return refined
 
 
 def _is_band(scan_losses, k: int) -> bool:

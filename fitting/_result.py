@@ -49,6 +49,8 @@ class FitResult:
     heldout: dict = dataclasses.field(default_factory=dict)
     rejected: str | None = None  # why the fitted coat is degenerate, or None
     correlated: list = dataclasses.field(default_factory=list)  # [[a, b], ...] moving together
+    # what the fit's later stages share (`fitting._fit.FitState`), to go on from its best point
+    resume: Any = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
     def sample(self) -> np.ndarray:

@@ -201,10 +201,16 @@ def sample_quantile(floor: float, groups: int, floor_losses=None, level: float =
     return float(floor) * float(chi2.ppf(level, k)) / k
 
 
+BETTER = 0.98  # the region holds a better optimum where a point's loss is below this x the fit's
+
+
 def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04, inflate: float = 1.0,
                     seed: int = 0, floor: float = 0.0, floor_losses=None):
-    """({name: (low, high)} in natural units, [undetermined names], [correlated pairs]) at
-    the fitted `theta` (`correlated_pairs`);
+    """({name: (low, high)} in natural units, [undetermined names], [correlated pairs],
+    better) at the fitted `theta` (`correlated_pairs`); `better` is None, or (theta, loss)
+    of the lowest point the region's walk found when its loss is below BETTER x the fit's:
+    the local search stopped short of a lower basin along the region's valley (the fit goes
+    on from there, `fitting._fit._conclude`);
     `inflate` (>= 1) multiplies the variances (loss / noise floor for a misspecified fit);
     `floor`, the fit's noise floor (the mean of `floor_losses`, single samples' losses),
     sets the region's absolute threshold (module docstring, `sample_quantile`)."""
@@ -217,13 +223,15 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     thetas = space.from_unit(jnp.asarray(pts, jnp.float32))
     vecs = np.asarray(_vectors(sim, space, cfg, thetas, keys, noise), np.float64)
     if not np.isfinite(vecs).all():
-        return {n: (float("nan"), float("nan")) for n in space.names}, list(space.names)
+        return {n: (float("nan"), float("nan")) for n in space.names}, list(space.names), [], None
     J = (vecs[:d] - vecs[d:]).T / (2 * h)
     var = group_variances(tstats, cfg, len(keys)) * max(float(inflate), 1.0)
     scale = float(var[0])  # every component's variance: the loss in units of -2 log L
     low, high, sd, flat = laplace_intervals(J, u_star, var)
     correlated = correlated_pairs(J, var, space.names, flat)
     target = np.asarray(stats_vector(tstats, cfg, noise), np.float64)
+
+    seen = []  # every point the region evaluates, with its loss
 
     def losses_at(units):  # in batches of 2d, the Jacobian's: the same compiled program
         out = []
@@ -233,6 +241,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
             v = np.asarray(_vectors(sim, space, cfg, space.from_unit(jnp.asarray(padded, jnp.float32)), keys, noise),
                            np.float64)
             out.append(((v - target) ** 2).sum(axis=1)[: len(part)])
+        seen.extend(zip(np.asarray(units), np.concatenate(out)))
         return np.concatenate(out)
 
     groups = len(cfg.groups())
@@ -249,4 +258,9 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
         a = float(np.asarray(space.from_unit(jnp.asarray(lo_u, jnp.float32)))[i])
         b = float(np.asarray(space.from_unit(jnp.asarray(hi_u, jnp.float32)))[i])
         out[n] = (min(a, b), max(a, b))
-    return out, [n for n, f in zip(space.names, und) if f], correlated
+    better = None
+    if seen:
+        u_low, loss_low = min(seen, key=lambda item: item[1] if np.isfinite(item[1]) else np.inf)
+        if loss_low < BETTER * best:
+            better = (np.asarray(space.from_unit(jnp.asarray(u_low, jnp.float32))), float(loss_low))
+    return out, [n for n, f in zip(space.names, und) if f], correlated, better

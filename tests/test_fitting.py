@@ -248,6 +248,60 @@ def test_fit_recovers_a_synthetic_target(small_fit):
     json.dumps(data, allow_nan=False)  # strict JSON
 
 
+@pytest.fixture(scope="module")
+def split_fits():
+    """A target wide enough to be split (two 32x32 halves of about five wavelengths each),
+    fitted with the refinement on the whole (the default) and without, that one without
+    intervals, as the refinement's start is fitted (with them, a lower point found by their
+    region moves the fit on); the settings and simulated lattice are small_fit's, so the
+    compiled programs are shared."""
+    truth = {"ratio": 20.0, "scale": 0.8}
+    field = np.asarray(fitting.Simulator(mj.Turing(), shape=(32, 64), steps=3000, window=300).run(
+        truth, jax.random.key(78)))
+    options = dict(model="turing", fit=["ratio", "scale"], shape=(32, 32), steps=3000, window=300, seeds=2,
+                   n_design=12, rounds=1, keep=1, max_steps=6, batch_size=8, progress=False,
+                   bounds={"ratio": (4.0, 40.0), "scale": (0.3, 3.0)})
+    return field, fitting.fit(field, **options), fitting.fit(field, refine=False, intervals=False, **options)
+
+
+def test_a_split_target_is_judged_on_its_held_out_half_and_refined_on_the_whole(split_fits):
+    field, refined, training = split_fits
+    assert refined.config["split"]["apart"] and training.config["split"]["apart"]
+    # the training fit is the refinement's start, and its verdict is the one reported
+    assert refined.config["refined"]["from"] == training.params
+    assert refined.heldout == training.heldout and refined.convincing == training.convincing
+    assert np.array_equal(refined.fields["training_fit"], training.fields["fit"])
+    # the refinement compares with the whole target's statistics, not the half's
+    whole = fitting._fit.target_stats(fitting.load_target(field, cell_pixels=1.0).field, fitting.StatsConfig())
+    assert np.allclose(refined.stats["target"]["spectrum"], whole["spectrum"])
+    assert not np.allclose(training.stats["target"]["spectrum"], whole["spectrum"])
+    # its local search starts at the training fit and ends no worse on the whole target
+    start = refined.config["starts"][0]
+    assert start["final_loss"] <= start["start_loss"] * (1 + 1e-6)
+    assert set(refined.intervals) == {"ratio", "scale"} and training.intervals == {}
+    assert refined.timings["refine"] > 0 and "refine" not in training.timings
+    json.dumps(refined.to_json(), allow_nan=False)
+
+
+def test_the_intervals_region_reports_a_lower_basin_than_the_fit(small_fit):
+    """Started away from the fit (scale 40% off), the region's walk finds points below the
+    start's loss, and says so (the fit then goes on from the lowest, `_conclude`)."""
+    from fitting._uncertainty import interval_report
+
+    _, _, result = small_fit
+    state = result.resume
+    tstats = {k: np.asarray(v, np.float32) for k, v in result.stats["target"].items()}
+    off = np.array([result.params["ratio"], result.params["scale"] * 1.4], np.float32)
+    _, _, _, better = interval_report(state.sim, state.space, state.stats, off, state.keys, tstats, state.noise,
+                                      floor=result.noise_floor)
+    start, _ = fitting._fit._loss_of(state.sim, state.space, state.stats, state.space.to_free(off), state.keys,
+                                     tstats, state.noise)
+    assert better is not None and better[1] < 0.98 * start
+    again, _ = fitting._fit._loss_of(state.sim, state.space, state.stats, state.space.to_free(better[0]),
+                                     state.keys, tstats, state.noise)
+    assert again == pytest.approx(better[1], rel=1e-3)  # the reported loss is the point's
+
+
 def test_preview(small_fit, tmp_path):
     _, _, result = small_fit
     img = result.preview(tmp_path / "p.png")
