@@ -212,6 +212,29 @@ def test_a_growing_run_resumed_many_times_equals_one_call():
     _identical(whole, parts)
 
 
+def test_calls_of_one_iteration_equal_one_call():
+    """Pieces of any length, 1 included, give the cells of one call bit for bit: a
+    progress bar over fewer than 100 iterations runs pieces of 1, and a scan of length 1
+    compiled alone fuses its iteration differently (an ulp in a few positions and
+    concentrations)."""
+    cells = mc.cell_grid((10, 10), ("U", "V"), lattice="hex", jitter=0.45, concentration=(4.0, 4.0),
+                         spread=(1.0, 1.0), diffusion=(0.05, 0.02), diffusion_spread=(0.02, 0.01), polarity=0.3,
+                         polarity_spread=3.0, anisotropic=("V",), upper=(None, 6.0), capacity=160,
+                         key=jax.random.key(3))
+    rules = (mc.Rule(mc.React(BARD, ("U", "V"))), mc.Rule(mc.Polarize("U"), when=mc.Compare(mc.NEIGHBORS, ">=", 5)),
+             mc.Rule(mc.Divide(0.7), when=(mc.Compare(mc.BIRTH, "==", 0), mc.Compare(mc.conc("U"), ">", 4.3)),
+                     start=1, stop=2))
+    settings = {"rules": rules, "division_limit": 5}
+    whole = mc.simulate_cells(None, cells, 6, 0.5, **settings)
+    assert int(whole.count) > int(cells.count), "the case should divide and push"
+    _identical(whole, mc.simulate_cells(None, mc.simulate_cells(None, cells, 1, 0.5, **settings), 5, 0.5, **settings))
+    one_by_one = cells
+    for _ in range(6):
+        one_by_one = mc.simulate_cells(None, one_by_one, 1, 0.5, **settings)
+    _identical(whole, one_by_one)
+    _identical(whole, mc.simulate_cells(None, cells, 6, 0.5, progress="test", **settings))  # pieces of 1
+
+
 def test_cells_files_without_a_neighbour_list_still_load_and_resume(mixed, tmp_path):
     """A file written before the list was saved (no list entries) loads, and a run resumed
     from it builds its list afresh; a file with half a list is refused, naming it."""

@@ -27,6 +27,7 @@ MAX_NEIGHBOURS = 20  # a packed or hexagonal tissue has 6-12 cells within 3.3; c
 BUCKET_SIZE = 8  # cells per bucket of side 3.3 (a packed tissue averages 3.4)
 PIECES = 50  # a progress bar moves in 50 pieces of the run
 MAX_ROOM = 512  # neighbours per cell or cells per bucket: no tissue of unit cells needs more
+MIN_TRIPS = 2  # a run's scan is never shorter (see `_run`)
 
 
 def simulate_cells(
@@ -88,8 +89,9 @@ def simulate_cells(
     Returns the cells after the run; `cells.step` counts iterations across calls, so a
     run can be resumed by calling again with the result, or with `load_cells` of its
     file. The cells carry the run's neighbour list (`cells.neighbours`) and the next call
-    goes on from it, so n calls give bit for bit the cells of one call of the same
-    iterations (same rules, key, dt, domain, division limit, influence radius and room).
+    goes on from it, so n calls, of any lengths (1 included), give bit for bit the cells
+    of one call of the same iterations (same rules, key, dt, domain, division limit,
+    influence radius and room).
     A call builds a list afresh for cells that carry none or one of another radius,
     capacity or `max_neighbours`: its cells then equal those of an uninterrupted run only
     up to the order of float sums (a patched list puts the same pairs in other slots).
@@ -214,16 +216,22 @@ def _carry_on(cells: Cells, settings: Settings):
 
 @eqx.filter_jit
 def _run(cells: Cells, neighbours, rules, settings: Settings, key, steps: int):
+    """`steps` iterations from `cells` and their list, in a scan of at least
+    `MIN_TRIPS` trips whose trips past `steps` leave the carry as it is. XLA inlines a
+    loop of one trip and fuses its iteration with the code around it, which changes the
+    last bits of the cells (an ulp in a few positions and concentrations); so no call
+    compiles one, and every call, of whatever length, runs the same compiled iteration."""
     cells = eqx.tree_at(
         lambda c: c.neighbour_overflow_step, cells,
         jnp.where((cells.neighbour_overflow_step < 0) & neighbours.overflow, cells.step, cells.neighbour_overflow_step),
     )
 
-    def body(carry, _):
-        return step(*carry, rules, settings, key), None
+    def body(carry, active):
+        return jax.lax.cond(active, lambda c: step(*c, rules, settings, key), lambda c: c, carry), None
 
     touch = contacts(cells, neighbours, settings.influence_radius)
-    (cells, neighbours, _), _ = jax.lax.scan(body, (cells, neighbours, touch), None, length=steps)
+    active = jnp.arange(max(steps, MIN_TRIPS)) < steps
+    (cells, neighbours, _), _ = jax.lax.scan(body, (cells, neighbours, touch), active)
     return cells, neighbours
 
 
