@@ -23,25 +23,10 @@ from jax import Array
 from ._adaptive import integrate_adaptive
 from ._checks import is_concrete
 from ._progress import progress_bar
+from ._repeat import repeat as _scan  # the loop's steps (benchmarks/gpu_lattice.py times others)
 from ._state import State
 from ._status import RunStatus
 from ._step import Carry, Config, growth_key, make_step
-
-
-def _scan(step, carry, n: int):
-    def body(c, _):
-        return step(c), None
-
-    if n == 0:
-        return carry
-    if n == 1:
-        # XLA inlines a loop of one trip and fuses its body with the code around it, which
-        # can round differently from the same step in a loop (by an ulp, seen with ETDRK):
-        # one step runs as a loop of two trips whose second does nothing, so a run cut into
-        # pieces of one step (a progress bar over few steps) gives the bits of one call
-        skip = lambda c: c  # noqa: E731
-        return jax.lax.scan(lambda c, i: (jax.lax.cond(i == 0, step, skip, c), None), carry, jnp.arange(2))[0]
-    return jax.lax.scan(body, carry, None, length=n)[0]
 
 
 def _locate_blowup(step, start: Carry, n: int, needed) -> Array:

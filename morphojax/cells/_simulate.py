@@ -12,6 +12,7 @@ import numpy as np
 
 from .._checks import as_float_array, check_count, check_finite, check_range, is_concrete
 from .._progress import progress_bar
+from .._repeat import repeat
 from .._status import SimulationError
 from ..models import AbstractModel
 from ._neighbours import PATCH_SIZES, Search, table_size_for
@@ -27,7 +28,6 @@ MAX_NEIGHBOURS = 20  # a packed or hexagonal tissue has 6-12 cells within 3.3; c
 BUCKET_SIZE = 8  # cells per bucket of side 3.3 (a packed tissue averages 3.4)
 PIECES = 50  # a progress bar moves in 50 pieces of the run
 MAX_ROOM = 512  # neighbours per cell or cells per bucket: no tissue of unit cells needs more
-MIN_TRIPS = 2  # a run's scan is never shorter (see `_run`)
 
 
 def simulate_cells(
@@ -164,7 +164,7 @@ def _torus_of(domain, cells: Cells, radius: float):
             raise ValueError(f"the cells live on a torus of {cells.period[0]:g} x {cells.period[1]:g}: domain must be "
                              f"None or that Torus (got {type(domain).__name__})")
         domain = Torus(*cells.period)
-    if domain is not None and isinstance(domain, Torus) and min(domain.period) < 2 * radius:
+    if isinstance(domain, Torus) and min(domain.period) < 2 * radius:
         raise ValueError(f"the torus of {domain.width:g} x {domain.height:g} is too small: each side must be at least "
                          f"2 x (influence_radius + {SKIN:g}) = {2 * radius:g} (the minimum-image convention)")
     return domain, cells
@@ -216,22 +216,14 @@ def _carry_on(cells: Cells, settings: Settings):
 
 @eqx.filter_jit
 def _run(cells: Cells, neighbours, rules, settings: Settings, key, steps: int):
-    """`steps` iterations from `cells` and their list, in a scan of at least
-    `MIN_TRIPS` trips whose trips past `steps` leave the carry as it is. XLA inlines a
-    loop of one trip and fuses its iteration with the code around it, which changes the
-    last bits of the cells (an ulp in a few positions and concentrations); so no call
-    compiles one, and every call, of whatever length, runs the same compiled iteration."""
+    """`steps` iterations from `cells` and their list (`repeat`: calls of any length,
+    one included, give the bits of one call)."""
     cells = eqx.tree_at(
         lambda c: c.neighbour_overflow_step, cells,
         jnp.where((cells.neighbour_overflow_step < 0) & neighbours.overflow, cells.step, cells.neighbour_overflow_step),
     )
-
-    def body(carry, active):
-        return jax.lax.cond(active, lambda c: step(*c, rules, settings, key), lambda c: c, carry), None
-
     touch = contacts(cells, neighbours, settings.influence_radius)
-    active = jnp.arange(max(steps, MIN_TRIPS)) < steps
-    (cells, neighbours, _), _ = jax.lax.scan(body, (cells, neighbours, touch), active)
+    cells, neighbours, _ = repeat(lambda carry: step(*carry, rules, settings, key), (cells, neighbours, touch), steps)
     return cells, neighbours
 
 
