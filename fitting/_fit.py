@@ -33,6 +33,7 @@ training half).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 
@@ -180,6 +181,23 @@ class _Recorder:
             self.bar.update(self.stage, float(loss))
 
 
+@contextlib.contextmanager
+def _recording(progress, label: str, total: int):
+    """A `_Recorder` of the losses the compiled searches report, with a progress bar of
+    `progress`'s mode (`fitting._progress.make_progress`), while the block runs."""
+    from ._progress import make_progress
+
+    bar = make_progress(progress, label, total)
+    rec = _Recorder(bar)
+    _RECORDERS.append(rec)
+    try:
+        yield rec
+    finally:
+        _RECORDERS.remove(rec)
+        if bar is not None:
+            bar.close()
+
+
 def _resolve(model, names, shape):
     """(family or None, template, fitted names, family bounds) for a model argument."""
     from ._families import FAMILIES, family, family_of
@@ -250,26 +268,17 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     tstats = target_stats(target.field, stats)  # the pattern's scale, not the fur's
     keys = jax.random.split(jax.random.key(seed + 1), seeds)
 
-    from ._progress import make_progress
-
     label = stage_prefix + (fam.name if fam is not None else "fit")
     moves = length_scale in names or stripes is not None
     total = (n_design * (1 + int(rounds) + (1 if moves else 0)) + LIMIT_SCAN * len(space.limits)
              + keep * max(max_steps, 1) * 2)
-    bar = make_progress(progress, label, total)
-    rec = _Recorder(bar)
-    _RECORDERS.append(rec)
-    try:
+    with _recording(progress, label, total) as rec:
         result = _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, seed=seed,
                       design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
                       fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
                       length_scale=length_scale, length_power=power, seeds=seeds,
                       design_keys=keys[: min(int(design_seeds), int(seeds))], stripes=stripes, intervals=intervals,
                       screen_only=screen_only)
-    finally:
-        _RECORDERS.remove(rec)
-        if bar is not None:
-            bar.close()
     result.family = fam.name if fam is not None else (model if isinstance(model, str) else type(template).__name__)
     result.palette = None if screen_only else target.palette()
     result.simulator = sim
@@ -437,6 +446,10 @@ def _local_stage(state: FitState, tstats, starts, rec) -> list:
     return finals
 
 
+# what `_conclude` and `refine` write into a result's config (a refinement writes them anew)
+CONCLUDED = ("method", "scale_snap", "simulator", "stats", "starts", "restarted", "refined")
+
+
 def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, settings, design_rows, history,
               intervals, restart: bool = True) -> FitResult:
     """The report stage from the local stage's `finals`: the best point moved to the
@@ -559,27 +572,17 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
     state = result.resume
     if state is None:
         raise ValueError("refine needs a full fit's result (a screen's keeps no fit state)")
-    from ._progress import make_progress
-
     t_start = time.perf_counter()
     tstats = target_stats(target.field, state.stats)
-    bar = make_progress(progress, f"refine {result.family}", 2 * max(int(state.settings["max_steps"]), 1))
-    rec = _Recorder(bar)
-    rec.stage = "refine"
-    _RECORDERS.append(rec)
-    try:
+    with _recording(progress, f"refine {result.family}", 2 * max(int(state.settings["max_steps"]), 1)) as rec:
+        rec.stage = "refine"
         start = state.space.to_free(jnp.asarray([result.params[n] for n in state.space.names], jnp.float32))
         finals = _local_stage(state, tstats, [start], rec)
         timings = {k: v for k, v in result.timings.items() if k not in ("report", "intervals", "total")}
         timings["refine"] = time.perf_counter() - t_start
-        settings = {k: v for k, v in result.config.items()
-                    if k not in ("method", "scale_snap", "simulator", "stats", "starts")}  # _conclude's own
+        settings = {k: v for k, v in result.config.items() if k not in CONCLUDED}
         refined = _conclude(target, state, tstats, finals, rec, timings, t_start, settings, result.design,
                             result.history, intervals)
-    finally:
-        _RECORDERS.remove(rec)
-        if bar is not None:
-            bar.close()
     refined.timings["total"] += result.timings.get("total", 0.0)  # the training fit's stages and these
     refined.family, refined.palette, refined.simulator = result.family, target.palette(), result.simulator
     refined.config["refined"] = {"from": dict(result.params), "training_loss": result.loss,
