@@ -86,7 +86,8 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
                blocks=None, schedule=None, segments=None, clock=None, solver=None, until=None):
     """The compiled core. Returns (final State, bad step, overflow flag, saved frames or
     None, the time a stopping rule ended the run or NaN, whether an adaptive run stopped
-    short of its time).
+    short of its time, the steps it made): the whole status comes out of the compiled
+    program, so an eager call does no device operation on it.
 
     With `blocks`, chunk j computes on the top-left block `blocks[schedule[j]]` (see
     `BlockLadder.chunk_blocks`); the chunk index comes from the scan, so it stays a real
@@ -97,8 +98,9 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     leave the carry as it is and the chunks after it are skipped.
     """
     if solver is not None and solver.adaptive:  # steps * dt is the time to reach; pieces keep their own time
-        return integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names,
-                                   growable)
+        out = integrate_adaptive(model, domain, fields, size, step0, time0, dt, steps, cfg, solver, until, names,
+                                 growable)
+        return out + (out[0].step - step0,)
     time0, step_t = (time0, step0) if clock is None else clock
     steady = None if until is None else jnp.asarray(jnp.nan, dt.dtype)
     c = Carry(domain.carry(fields, size, cfg.dynamic), size, step0, jnp.asarray(-1, jnp.int32), jnp.asarray(False),
@@ -160,7 +162,7 @@ def _integrate(model, domain, fields, size, step0, time0, dt, key, origin, growt
     if rem:
         c = run_chunk(c, jnp.asarray(schedule[-1] if schedule is not None else 0, jnp.int32), rem)
     final = _crop_state(domain, c, names, time0, step_t, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, frames, c.steady_time(dt), jnp.asarray(False)
+    return final, c.bad, c.overflow, frames, c.steady_time(dt), jnp.asarray(False), c.step - step0
 
 
 def _until_steady(step, domain, tol: float, dt, time0, step0):
@@ -181,7 +183,7 @@ def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg,
                         growable, time0, step0):
     """Run a plan's segments: per block, a scan over (steps without growth, then expand)."""
     blocks, groups = segments
-    steps_b = {}
+    steps_b, start = {}, c.step
 
     def expand(sub):  # the plan knows the sizes: an expansion that would not fit is not planned
         x, size = growth.expand(domain.interior(sub.p), sub.size, growth_key(key, sub.step - 1))
@@ -200,7 +202,7 @@ def _integrate_segments(model, domain, c, dt, key, origin, growth, sources, cfg,
         sub = jax.lax.scan(body, c._replace(p=domain.block(c.p, *blocks[b])), None, length=repeat)[0]
         c = sub._replace(p=domain.unblock(c.p, sub.p))
     final = _crop_state(domain, c, names, time0, step0, dt, growable, cfg.dynamic)
-    return final, c.bad, c.overflow, None, c.steady_time(dt), jnp.asarray(False)
+    return final, c.bad, c.overflow, None, c.steady_time(dt), jnp.asarray(False), c.step - start
 
 
 def default_chunk(steps: int, checkpoint) -> int:
@@ -241,7 +243,7 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
     if len(pieces) > 1 or (progress and steps):
         bar = progress_bar(steps, description)
     frames_all, compiled = [], set()
-    status = RunStatus.healthy()
+    status = None
     current = state
     try:
         for n in pieces:
@@ -261,15 +263,18 @@ def drive(model, domain, state, steps, dt, cfg, growth, sources, key, origin, ch
                 growth, sources, names=current.names, growable=current.growable, steps=int(n), cfg=cfg, chunk=chunk,
                 checkpoint=ckpt, save_every=save_every, save_fn=save_fn,
                 clock=None if len(pieces) == 1 else (state.time, state.step), solver=solver, until=until)
-            final, bad_i, over_i, frames, steady_i, short_i = run(blocks=blocks, schedule=schedule, segments=segments)
+            final, bad_i, over_i, frames, steady_i, short_i, taken_i = run(blocks=blocks, schedule=schedule,
+                                                                           segments=segments)
             if segments is not None and is_concrete(bad_i) and int(bad_i) >= 0:
                 # a planned run only marks the segment that blew up: the same piece again
                 # (same key, same result) on the chunked path, which replays the bad chunk
                 # one step at a time, pins down the step
                 per = max(1, min(chunk, int(n)))
                 blocks, schedule = plan.chunk_blocks(current, growth, int(n), dt, origin, per)
-                final, bad_i, over_i, frames, steady_i, short_i = run(blocks=blocks, schedule=schedule, segments=None)
-            status = status.merge(RunStatus(bad_i, over_i, steady_i, final.step - current.step, short_i))
+                final, bad_i, over_i, frames, steady_i, short_i, taken_i = run(blocks=blocks, schedule=schedule,
+                                                                               segments=None)
+            piece = RunStatus(bad_i, over_i, steady_i, taken_i, short_i)
+            status = piece if status is None else status.merge(piece)  # one piece: its own status, no device op
             if frames is not None:
                 frames_all.append(frames)
             current = final

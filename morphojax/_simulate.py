@@ -123,7 +123,7 @@ def _prepare(model, state, steps, dt, domain, boundary, stencil, bounds, growth,
             )
         growth.check_capacity(state, steps, dt, origin, domain.expansion_copies)
     sources = tuple(s.check(state) for s in sources)
-    dt = as_float_array(dt, "dt").astype(state.fields.dtype)
+    dt = as_float_array(dt, "dt", state.fields.dtype)
     if plan is not None and not isinstance(plan, (BlockLadder, WholeCapacity)):
         raise ValueError(f"plan must be mj.BlockLadder(...) or mj.WholeCapacity() (got {plan!r})")
     if cfg.dynamic and not hasattr(domain, "block"):  # the block ladder cuts square lattices only

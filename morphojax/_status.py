@@ -8,10 +8,16 @@ place turns that record into an error or a message.
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jax import Array
 
 from ._checks import is_concrete
+
+
+def _array(value):
+    """`value` as a JAX array: arrays (and tracers) as they are, numbers put on the device."""
+    return value if isinstance(value, jax.Array) else jnp.asarray(value)
 
 
 class SimulationError(ValueError):
@@ -44,11 +50,11 @@ class RunStatus(eqx.Module):
     incomplete: Array
 
     def __init__(self, nonfinite_step, overflow, steady_at=float("nan"), steps_taken=0, incomplete=False):
-        self.nonfinite_step = jnp.asarray(nonfinite_step)
-        self.overflow = jnp.asarray(overflow)
-        self.steady_at = jnp.asarray(steady_at)
-        self.steps_taken = jnp.asarray(steps_taken)
-        self.incomplete = jnp.asarray(incomplete)
+        self.nonfinite_step = _array(nonfinite_step)
+        self.overflow = _array(overflow)
+        self.steady_at = _array(steady_at)
+        self.steps_taken = _array(steps_taken)
+        self.incomplete = _array(incomplete)
 
     @classmethod
     def healthy(cls) -> "RunStatus":
@@ -58,6 +64,9 @@ class RunStatus(eqx.Module):
     def ok(self):
         """True where the run neither blew up, overflowed nor stopped short of its time: a
         Python bool for one eager run, an array under `jit` or for a batch (`vmap`)."""
+        if is_concrete(self) and all(jnp.ndim(v) == 0 for v in (self.nonfinite_step, self.overflow, self.incomplete)):
+            # one eager run: read on the host (no device operations), as `message` does
+            return int(self.nonfinite_step) < 0 and not bool(self.overflow) and not bool(self.incomplete)
         ok = (self.nonfinite_step < 0) & ~self.overflow & ~self.incomplete
         return bool(ok) if is_concrete(ok) and jnp.ndim(ok) == 0 else ok
 

@@ -89,12 +89,37 @@ def reaction_and_limit(acting, bounds, ndim: int):
     return reaction, limit
 
 
+_RATE_SHAPES: dict = {}  # rate_shape's answers by the model's structure and leaf shapes (and the fields')
+
+
 def rate_shape(model, fields=None) -> tuple:
     """The shape of the diffusion rates a step uses: `model.diffusion()`'s, or, for a model
     whose parameters follow the state (`Modulated`), that of `model.at(fields).diffusion()`,
     worked out from `fields`' shape alone (a state-set rate may be a map where the model's
-    own is a number)."""
-    if fields is None or type(model).at is AbstractModel.at:
+    own is a number).
+
+    A shape depends on the model's tree structure and its leaves' shapes and dtypes only,
+    so it is worked out once for each of those (each run checks it: computing the rates
+    eagerly cost more than the rest of a short run's checks)."""
+    follows = fields is not None and type(model).at is not AbstractModel.at
+    leaves, treedef = jax.tree_util.tree_flatten(model)
+    key = (treedef, tuple((leaf.shape, leaf.dtype) if hasattr(leaf, "shape") and hasattr(leaf, "dtype") else leaf
+                          for leaf in leaves),
+           (tuple(jnp.shape(fields)), jnp.result_type(fields)) if follows else None)
+    try:
+        return _RATE_SHAPES[key]
+    except TypeError:  # a leaf or static field that cannot be hashed: not kept
+        return _rate_shape(model, fields, follows)
+    except KeyError:
+        pass
+    if len(_RATE_SHAPES) >= 256:
+        _RATE_SHAPES.clear()
+    shape = _RATE_SHAPES[key] = _rate_shape(model, fields, follows)
+    return shape
+
+
+def _rate_shape(model, fields, follows: bool) -> tuple:
+    if not follows:
         return tuple(jnp.shape(model.diffusion()))
     struct = jax.ShapeDtypeStruct(tuple(jnp.shape(fields)), jnp.result_type(fields))
     return tuple(jax.eval_shape(lambda x: model.at(x).diffusion(), struct).shape)
