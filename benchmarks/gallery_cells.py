@@ -5,12 +5,15 @@ made (cells, iterations, seconds).
     python benchmarks/gallery_cells.py [--only thesis-fig6.3 ...] [--quick]
 
 Images go to benchmarks/results/gallery/NAME.png (the .npz and .svg beside them are not
-kept); the table to benchmarks/results/gallery_cells.md.
+kept); the table to benchmarks/results/gallery_cells.md, and what the presets that measure their
+figure found (the summary entries named in MEASURED: `transition`, `spots`, ...) to
+benchmarks/results/gallery_cells_measured.md.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import tempfile
 import time
@@ -24,6 +27,7 @@ HERE = Path(__file__).resolve().parent
 # the variants of Figs. 6.3 and 6.5
 SEEDS = {"thesis-fig6.3": 1, "thesis-fig6.5": 1, "thesis-fig6.6": 1, "thesis-fig6.3-closeup": 1,
          "thesis-fig6.3-anisotropic-u": 1, "thesis-fig6.3-anisotropic-v": 1, "thesis-fig6.5-directed": 1}
+MEASURED = ("transition", "spots", "cubic", "saturation")  # the summary entries that measure a figure
 
 
 def main():
@@ -34,7 +38,7 @@ def main():
     args = p.parse_args()
     out = HERE / "results" / "gallery"
     out.mkdir(parents=True, exist_ok=True)
-    rows = []
+    rows, measured = [], {}
     for name in args.only:
         t0 = time.perf_counter()
         with tempfile.TemporaryDirectory() as tmp:
@@ -43,8 +47,11 @@ def main():
             shutil.copy(Path(tmp) / f"{name}.png", out / f"{name}.png")
         seconds = time.perf_counter() - t0
         rows.append((name, mj.PRESETS[name].figure, seed, summary["iterations"], summary["cells"], seconds))
-        measured = f", {summary['transition']}" if summary.get("transition") else ""  # thesis-fig6.11-*
-        print(f"{name}: {summary['cells']} cells at {summary['iterations']} ({seconds:.1f} s){measured}", flush=True)
+        found = {k: summary[k] for k in MEASURED if summary.get(k) is not None}
+        if found:
+            measured[name] = found
+        print(f"{name}: {summary['cells']} cells at {summary['iterations']} ({seconds:.1f} s)"
+              f"{', ' + json.dumps(found) if found else ''}", flush=True)
     if args.quick:
         return
     lines = ["# The thesis's cell experiments at full size", "",
@@ -61,6 +68,23 @@ def main():
                       f"{', '.join(map(str, cells))} | {seconds:.0f} |")
     lines += [kept[n] for n in names if n in kept]
     table.write_text("\n".join(lines) + "\n")
+    _write_measured(measured, names, len(args.only) < len(names))
+
+
+def _write_measured(measured: dict, names: list, partial: bool) -> None:
+    """One line of JSON per preset that measures its figure (a partial run updates its own)."""
+    path = HERE / "results" / "gallery_cells_measured.md"
+    kept = {}
+    if path.exists() and partial:
+        for line in path.read_text().splitlines():
+            if line.startswith("- `"):
+                kept[line.split("`")[1]] = line
+    for name, found in measured.items():
+        kept[name] = f"- `{name}`: `{json.dumps(found)}`"
+    lines = ["# What the cell presets that measure their figure found", "",
+             ("`python benchmarks/gallery_cells.py` with the seeds of gallery_cells.md; each preset's summary entries "
+              "(see its module's notes for what they mean)."), ""]
+    path.write_text("\n".join(lines + [kept[n] for n in names if n in kept]) + "\n")
 
 
 if __name__ == "__main__":
