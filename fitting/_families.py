@@ -160,7 +160,7 @@ FAMILIES = {
         {"r_act": (1.5, 5.0, False), "r_inh": (3.0, 12.0, False), "w_inh": (-1.0, -0.05, False),
          "w_act": (0.2, 2.0, False)},
         ("r_act", "r_inh", "w_inh"), length=None, steps=30, window=10,
-        description="Young's activator-inhibitor automaton (paper 002) through its soft relaxation "
+        description="Young's activator-inhibitor automaton (Dur 2023) through its soft relaxation "
                     "(fitting.Simulator): 30 steps from Young's sparse start; spots to stripes as w_inh rises"),
     "leopard": Family(
         "leopard", _leopard,

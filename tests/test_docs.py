@@ -106,10 +106,43 @@ def test_the_readme_links_stay_inside_the_repository():
         assert (ROOT / path).exists(), f"README links to a missing file: {target}"
 
 
+PAPER_NUMBER = re.compile(r"\b[Pp]apers? 00[0-4]\b")
+
+
+def _public_docstrings():
+    """(where, docstring) of every public name of the packages, its members and its module:
+    the API pages and `--help` show these."""
+    import inspect
+
+    for package in PACKAGES:
+        module = importlib.import_module(package)
+        yield package, module.__doc__
+        for name in module.__all__:
+            obj = getattr(module, name)
+            yield f"{package}.{name}", getattr(obj, "__doc__", None) if callable(obj) or inspect.isclass(obj) else None
+            home = inspect.getmodule(obj)
+            if home is not None:
+                yield home.__name__, home.__doc__
+            if inspect.isclass(obj):
+                for member, value in vars(obj).items():
+                    value = getattr(value, "__func__", value)
+                    value = getattr(value, "fget", value)
+                    yield f"{package}.{name}.{member}", getattr(value, "__doc__", None)
+
+
 def test_pages_cite_the_bibliography_not_paper_numbers():
     for page in DOCS.rglob("*.md"):
         text = page.read_text(encoding="utf-8")
-        assert not re.search(r"\bpapers? 00[0-4]\b", text), f"{page.relative_to(ROOT)} says 'paper 00N'"
+        assert not PAPER_NUMBER.search(text), f"{page.relative_to(ROOT)} says 'paper 00N'"
+    # the API pages render the docstrings, and `morphojax presets` prints every preset's strings
+    for where, doc in _public_docstrings():
+        assert not (isinstance(doc, str) and PAPER_NUMBER.search(doc)), f"the docstring of {where} says 'paper 00N'"
+    import morphojax as mj
+
+    for name, preset in mj.PRESETS.items():
+        for field in ("figure", "description"):
+            text = str(getattr(preset, field))
+            assert not PAPER_NUMBER.search(text), f"preset {name}'s {field} says 'paper 00N': {text}"
     anchors = set(re.findall(r"#([a-z]+\d{4}|lundelius)\b", (DOCS / "bibliography.md").read_text(encoding="utf-8")))
     anchors |= set(re.findall(r'id="([a-z]+\d*)"', (DOCS / "bibliography.md").read_text(encoding="utf-8")))
     for page in DOCS.rglob("*.md"):

@@ -271,7 +271,7 @@ def test_preset_quick_form_makes_a_turing_pattern(name):
     """From the homogeneous state with 1% noise the quick run forms a pattern whose dominant
     wavelength is the linear prediction's 7-9 cells (not uniform, not blown up)."""
     experiment = mj.preset(name, quick=True)
-    assert mj.PRESETS[name].figure == "paper 003 section II.C"
+    assert mj.PRESETS[name].figure == "Tinson 2022 section II.C"
     result = mj.run_experiment(experiment, seed=0)
     u = np.asarray(result.state.arrays()[0])
     d = mj.describe(u)

@@ -186,7 +186,7 @@ def test_thomas_defaults_are_turing_unstable():
 
 def test_thomas_preset_settles_near_the_predicted_wavelength():
     experiment = mj.preset("thomas", quick=True)
-    assert mj.PRESETS["thomas"].figure == "paper 003 section II.C"
+    assert mj.PRESETS["thomas"].figure == "Tinson 2022 section II.C"
     u = np.asarray(mj.run_experiment(experiment, seed=0).state.arrays()[0])
     d = mj.describe(u)
     assert d.finite and d.pattern in ("spots", "inverted spots"), d

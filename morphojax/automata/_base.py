@@ -90,7 +90,7 @@ class AbstractAutomaton(eqx.Module):
             save_every: int | None = None, history: bool = False, progress=False) -> AutomatonRun:
         """`steps` synchronous updates in one compiled loop, or fewer with
         `stop_at_convergence=True`: then the loop stops after the first update that
-        changed fewer than `threshold` (paper 002: 1%) of the cells. `save_every` keeps a
+        changed fewer than `threshold` (Dur 2023: 1%) of the cells. `save_every` keeps a
         snapshot every that many updates (`AutomatonRun.frames`); `history` records the
         fraction of changed cells of every update (`AutomatonRun.changes`). `progress`
         shows a bar (a string names it): the run goes in pieces of about a twentieth

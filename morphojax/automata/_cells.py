@@ -20,7 +20,7 @@ def random_cells(key, shape, k: int = 1, p=None, dtype=jnp.int8) -> Array:
 
     With `p` (Young: p = 0.015, `YOUNG_P`) each cell is differentiated with probability p
     and then of a species drawn uniformly among the k; with `p=None` every cell is
-    uniform over the k + 1 states (the well-mixed start of paper 002). `key` is a
+    uniform over the k + 1 states (the well-mixed start of Dur 2023). `key` is a
     `jax.random` key; `p` may be traced (vmap over keys and p works).
     """
     shape = check_shape(shape, "random_cells.shape")

@@ -17,7 +17,7 @@ from ._pictures import state_colours
 
 
 def species_mesh(cells, j: int, *, step_size: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Surface between species j and every other state (paper 002 Fig. 4b), by marching
+    """Surface between species j and every other state (Dur 2023 Fig. 4b), by marching
     cubes on the padded indicator, so the surface is closed at the lattice boundary.
     Returns (vertices (V, 3) float32 in lattice cells, faces (F, 3) int32)."""
     from skimage.measure import marching_cubes

@@ -1,4 +1,4 @@
-"""What is measured on automata: state fractions, paper 002's order parameter (eq. 5),
+"""What is measured on automata: state fractions, Dur's (2023) order parameter (eq. 5),
 changed cells and convergence, and the weighted volume difference of a rule (eq. 6)."""
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ def volume_fractions(cells, k: int) -> Array:
 
 @functools.partial(jax.jit, static_argnames="k")
 def order_parameter(cells, k: int) -> Array:
-    """Paper 002's order parameter (eq. 5), one entry per state 0..k, for any dimension.
+    """Dur's (2023) order parameter (eq. 5), one entry per state 0..k, for any dimension.
 
     eps_j = | sum_c sum_{n in N(c)} s_j(c) s_j(n) | / (2 d N), with s_j = +1 on state j
     and -1 elsewhere, N(c) the 2d direct (von Neumann) neighbours on the periodic lattice
@@ -51,12 +51,12 @@ def changed_fraction(old, new) -> Array:
 
 
 def has_converged(old, new, threshold=0.01) -> Array:
-    """Paper 002's convergence test: fewer than `threshold` (1%) of the cells changed."""
+    """Dur's (2023) convergence test: fewer than `threshold` (1%) of the cells changed."""
     return changed_fraction(old, new) < threshold
 
 
 def weighted_volume_difference(ca: YoungCA, dim: int = 3, *, discrete: bool = False) -> Array:
-    """Paper 002's weighted volume difference (eq. 6) of every species, shape (K,).
+    """Dur's (2023) weighted volume difference (eq. 6) of every species, shape (K,).
 
     WVD_j = V(r_act) w_act + (V(r_inh) - V(r_act)) w_inh with V the volume of a
     `dim`-dimensional ball (4/3 pi r^3 in 3D), in lattice cells^dim x weight. With

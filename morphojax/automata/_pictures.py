@@ -11,7 +11,7 @@ from PIL import Image, ImageColor
 
 from .._render import colormap_table, montage, to_image
 
-# species colours (paper 002 style: distinct hues), then the undifferentiated state
+# species colours (Dur 2023 style: distinct hues), then the undifferentiated state
 SPECIES_COLOURS = ("#1d1208", "#d0743c", "#3b6ea5", "#6a9a3a", "#a53b6e", "#e0b02c", "#4bb3b0", "#7b5ea7")
 UNDIFFERENTIATED = "#f3e3c3"
 

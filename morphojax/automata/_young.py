@@ -2,7 +2,7 @@
 
 Cells hold an integer state: 0 .. K-1 are the K differentiated species and K is the
 undifferentiated state (for Young's original K = 1: 0 = differentiated, 1 = not; note
-that this is the reverse of the 0/1 coding in the Python code of paper 003, use
+that this is the reverse of the 0/1 coding in the Python code of Tinson 2022, use
 `1 - cells` to convert). Species j has an activator neighbourhood of radius r_act[j]
 with weight w_act[j] > 0 and an inhibitor ring r_act[j] < d <= r_inh[j] with weight
 w_inh[j] < 0. Its net field at a cell is
@@ -10,7 +10,7 @@ w_inh[j] < 0. Its net field at a cell is
     W_j = w_act[j] * (# cells of species j in the activator disc)
         + w_inh[j] * (# cells of species j in the inhibitor ring)
 
-and the synchronous update (paper 002, eqs. 1-4) is: the species with the largest W_j
+and the synchronous update (Dur 2023, eqs. 1-4) is: the species with the largest W_j
 wins when that maximum is > 0 (the lowest index on a tie between species), the cell
 becomes undifferentiated when the maximum is < 0, and keeps its state when it is 0.
 
@@ -82,17 +82,17 @@ def common_denominator(values) -> int:
 
 # ---- the automaton -----------------------------------------------------------------------
 class YoungCA(AbstractAutomaton):
-    """Young's activator-inhibitor automaton with K species (paper 002 eqs. 1-4).
+    """Young's activator-inhibitor automaton with K species (Dur 2023 eqs. 1-4).
 
         ca = YoungCA(species=[(3.2, 6.0, 1.0, -0.2)])        # (r_act, r_inh, w_act, w_inh)
         cells = random_cells(jax.random.key(0), (30, 30, 30), k=1, p=None)
         out = ca.run(cells, 100, stop_at_convergence=True)   # out.cells, out.steps
 
     Radii are in lattice cells; weights are the net activation (> 0) and inhibition (< 0)
-    field of one differentiated cell. `neighbourhood` is "disc" (Euclidean, paper 002),
-    "box" (Young's square boxes as in paper 003's code, Moore's neighbourhood) or "diamond"
-    (von Neumann's, paper 003's Fig. 1 (b)); `include_self` counts the cell
-    itself in its activator disc. Paper 003's code, which sums the inhibitor over the
+    field of one differentiated cell. `neighbourhood` is "disc" (Euclidean, Dur 2023),
+    "box" (Young's square boxes as in Tinson's (2022) code, Moore's neighbourhood) or "diamond"
+    (von Neumann's, Tinson's (2022) Fig. 1 (b)); `include_self` counts the cell
+    itself in its activator disc. Tinson's (2022) code, which sums the inhibitor over the
     whole box (self included) and writes WS = Na wa - Ni wi, is
     `YoungCA([(Ra, Ri, wa - wi, -wi)], "box", include_self=True)`.
 

@@ -12,7 +12,7 @@ from morphojax.presets import run_automaton, run_life_like
 
 from ._output import out_arg, picture_path, report
 
-DEFAULT_SPECIES = (3.2, 6.0, 1.0, -0.2)  # paper 002's two-species example (section 4.2)
+DEFAULT_SPECIES = (3.2, 6.0, 1.0, -0.2)  # Dur's (2023) two-species example (section 4.2)
 
 
 def _species(text: str):

@@ -1,4 +1,4 @@
-"""The cellular Potts model (paper 003, section III.B): cells as sets of lattice sites.
+"""The cellular Potts model (Tinson 2022, section III.B): cells as sets of lattice sites.
 
     import morphojax as mj
     model = mj.Potts.paper003(j_like=3.0)               # T 10, V 25, lambda 2, order 2

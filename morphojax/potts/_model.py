@@ -1,4 +1,4 @@
-"""`Potts`: the cellular Potts model of paper 003 (section III.B, after Graner & Glazier
+"""`Potts`: the cellular Potts model of Tinson 2022 (section III.B, after Graner & Glazier
 1992), its Hamiltonian and its Metropolis run.
 
     H = sum over neighbouring sites i, j of J(tau(sigma_i), tau(sigma_j)) (1 - delta(sigma_i, sigma_j))
@@ -38,7 +38,7 @@ class Potts(eqx.Module):
     - `boundary`: "fixed" (the default: no sites beyond the edge) or "wrap" (toroidal; needs
       even sides).
 
-    Paper 003's runs: `Potts.paper003(j_like)` (J = 16 between unlike types and with the
+    Tinson's (2022) runs: `Potts.paper003(j_like)` (J = 16 between unlike types and with the
     medium, 0 medium-medium, T = 10, V = 25, lambda = 2, order 2).
 
     Energies are exact in floating point whenever J, lambda and V are multiples of 2^-k and
@@ -82,7 +82,7 @@ class Potts(eqx.Module):
 
     @staticmethod
     def paper003(j_like, temperature=10.0, j_unlike=16.0, j_medium=16.0, target_volume=25.0, volume_weight=2.0):
-        """Paper 003's model (section III.B.2, appendix C2): types medium, 1 (condensing),
+        """Tinson's (2022) model (section III.B.2, appendix C2): types medium, 1 (condensing),
         2 (non-condensing); J(1, 1) = J(2, 2) = `j_like`, J(1, 2) = `j_unlike`, J(M, 1) =
         J(M, 2) = `j_medium`, J(M, M) = 0."""
         m, u, like = j_medium, j_unlike, j_like

@@ -7,7 +7,7 @@ from PIL import Image
 
 from ._state import PottsState
 
-# medium black, type 1 (condensing) blue, type 2 (non-condensing) green: paper 003's Fig. 10
+# medium black, type 1 (condensing) blue, type 2 (non-condensing) green: Tinson's (2022) Fig. 10
 TYPE_COLOURS = np.array([(0, 0, 0), (40, 90, 220), (40, 180, 80), (220, 160, 40), (200, 60, 60), (150, 80, 200)],
                         np.uint8)
 BORDER = np.array((15, 15, 15), np.uint8)

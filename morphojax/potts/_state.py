@@ -1,7 +1,7 @@
 """The state of a cellular Potts model: a lattice of cell ids, a type per cell, the volumes.
 
 Cell id 0 is the medium (type 0); cells 1..n carry types >= 1. `potts_blob` builds the
-initial condition of paper 003's runs (CompuCell3D's BlobInitializer, appendix C2).
+initial condition of Tinson's (2022) runs (CompuCell3D's BlobInitializer, appendix C2).
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ class PottsState(eqx.Module):
 def potts_blob(shape, radius, cell_width, *, types=(1, 2), key=None, center=None) -> PottsState:
     """A disc of `radius` sites (centred at `center`, default the lattice's middle) cut into
     square cells `cell_width` sites wide, each of a type drawn uniformly from `types` with
-    `key` (default `jax.random.key(0)`); the rest is medium. Paper 003's runs: shape (100,
+    `key` (default `jax.random.key(0)`); the rest is medium. Tinson's (2022) runs: shape (100,
     100), radius 40, width 5, types (1, 2) (appendix C2, CompuCell3D's BlobInitializer with
     gap 0). Cells cut by the disc's edge are smaller; ids are numbered row by row from 1."""
     if len(tuple(shape)) != 2:

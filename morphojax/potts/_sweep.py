@@ -77,8 +77,8 @@ def _neighbours(planes, a, b, order: int, boundary: str):
 
 
 def attempt_energy(model, old, src, nbs, types, volumes):
-    """The energy change of copying `src` onto sites holding `old` (paper 003's
-    Hamiltonian, section III.B: contact over the neighbours `nbs`, volume of both cells)."""
+    """The energy change of copying `src` onto sites holding `old` (the Hamiltonian of
+    Tinson 2022, section III.B: contact over the neighbours `nbs`, volume of both cells)."""
     J = model.J
     t_old, t_src = types[jnp.maximum(old, 0)], types[jnp.maximum(src, 0)]
     t_nb = types[jnp.maximum(nbs, 0)]
@@ -185,7 +185,7 @@ def run_mcs_dynamic(model, planes, volumes, types, key, mcs):
 
 
 def total_energy(model, ids, types, volumes):
-    """Paper 003's Hamiltonian of a lattice: J(type, type') over every unordered pair of
+    """Tinson's (2022) Hamiltonian of a lattice: J(type, type') over every unordered pair of
     neighbouring sites in different cells, plus lambda (v - V)^2 over the cells 1..n."""
     t = types[ids]
     contact = jnp.zeros((), model.J.dtype)

@@ -1,4 +1,4 @@
-"""Cellular-automaton presets: Young's automaton (paper 003), K species in 3D (paper 002)
+"""Cellular-automaton presets: Young's automaton (Tinson 2022), K species in 3D (Dur 2023)
 and life-like rules; `morphojax run young-fig8` or `PRESETS["young-fig8"].run()`.
 
 Every run writes its PNG `out`, `out.npz` with the final cells and a JSON `metadata` entry
@@ -30,14 +30,14 @@ def _automaton(name, description, figure):
     return registered(AutomatonPreset, name, description, figure)
 
 
-# ---- Young's 2D automaton (paper 003) ----------------------------------------------------
+# ---- Young's 2D automaton (Tinson 2022) ----------------------------------------------------
 YOUNG_R1, YOUNG_R2, YOUNG_W1 = 2.30, 6.01, 1.0
 FIG8_W2 = (-0.20, -0.24, -0.28, -0.32, -0.36, -0.40)  # stripes -> spots
-FIG8_STEPS = 30  # paper 003: "each simulation is run for 30 time-steps"
+FIG8_STEPS = 30  # Tinson 2022: "each simulation is run for 30 time-steps"
 
 
 @_automaton("young-fig8", "Young's automaton, r1 = 2.30, r2 = 6.01, w1 = 1, w2 from -0.20 to -0.40: stripes to spots",
-            "paper 003 Fig. 8 (Young 1984 Fig. 6)")
+            "Tinson 2022 Fig. 8 (Young 1984 Fig. 6)")
 def _young_fig8(seed, quick, out, frames):
     size = 100 if quick else 200
     # one common denominator so the models stack into one vmapped run
@@ -81,13 +81,14 @@ def _young_single(w2):
 
 
 register(AutomatonPreset("young-stripes", "Young's automaton at w2 = -0.20: labyrinthine stripes",
-                         "paper 003 Fig. 8 (left)", _young_single(-0.20)))
+                         "Tinson 2022 Fig. 8 (left)", _young_single(-0.20)))
 register(AutomatonPreset("young-spots", "Young's automaton at w2 = -0.40: isolated spots",
-                         "paper 003 Fig. 8 (right)", _young_single(-0.40)))
+                         "Tinson 2022 Fig. 8 (right)", _young_single(-0.40)))
 
 
-@_automaton("young-b1", "paper 003's Python code: Moore boxes Ra = 2, Ri = 5, wa = 1, wi = 0.2, self counted, 20 steps",
-            "paper 003 Fig. B1 (evolution over time)")
+@_automaton("young-b1", "Tinson's (2022) Python code: Moore boxes Ra = 2, Ri = 5, wa = 1, wi = 0.2, self counted, "
+            "20 steps",
+            "Tinson 2022 Fig. B1 (evolution over time)")
 def _young_b1(seed, quick, out, frames):
     # the code sums the inhibitor over the whole box (self included): WS = Na wa - Ni wi,
     # i.e. weight wa - wi on the inner box and -wi on the ring
@@ -99,7 +100,7 @@ def _young_b1(seed, quick, out, frames):
 
 
 def _young_series(cas, labels, columns, title, extra, seed, out, size, steps):
-    """Run the models `cas` from one start of paper 003's code (p = 0.015 differentiated
+    """Run the models `cas` from one start of Tinson's (2022) code (p = 0.015 differentiated
     cells) for `steps` each, and write the montage of their final states (`columns` to a
     row; each row labelled by the labels of its first and last tile) and the `.npz`."""
     cells0 = mj.random_cells(jax.random.key(seed), (size, size), 1, mj.YOUNG_P)
@@ -126,41 +127,41 @@ B2_WI = tuple(round(1.05 - 0.05 * i, 2) for i in range(20))  # 1.05 (upper left)
 B2_RUN = tuple(w for w in B2_WI if w < 1.0)  # YoungCA's activator weight wa - wi must be > 0
 
 
-@_automaton("young-b2", "paper 003's Python code with its inhibitor weight wi from 0.95 to 0.10 (Moore boxes Ra = 2, "
-            "Ri = 5, wa = 1, self counted, 20 steps): small spots, larger spots, stripes, inverted spots, all on",
-            "paper 003 Fig. B2 (varying inhibitor field value)")
+@_automaton("young-b2", "Tinson's (2022) Python code with its inhibitor weight wi from 0.95 to 0.10 (Moore "
+            "boxes Ra = 2, Ri = 5, wa = 1, self counted, 20 steps): small spots, larger spots, stripes, inverted spots, all on",
+            "Tinson 2022 Fig. B2 (varying inhibitor field value)")
 def _young_b2(seed, quick, out, frames):
     # the code's WS = Na wa - Ni wi is weight wa - wi on the inner box and -wi on the ring
     # (see young-b1); the appendix's first two panels, wi = 1.05 and 1.00, give the inner box
     # a weight <= 0, which YoungCA refuses (an activator weight is > 0), so they are not run
     cas = [mj.YoungCA([(2, 5, round(1.0 - wi, 2), -wi)], "box", include_self=True, denominator=100) for wi in B2_RUN]
     labels = [f"wi = {wi:.2f}" for wi in B2_RUN]
-    return _young_series(cas, labels, 6, "paper 003 B2: wi from 0.95 (upper left) to 0.10, t = 20, Moore boxes "
+    return _young_series(cas, labels, 6, "Tinson 2022 B2: wi from 0.95 (upper left) to 0.10, t = 20, Moore boxes "
                          "Ra 2, Ri 5, wa 1", {"wi": list(B2_RUN), "not_run": [1.05, 1.0]}, seed, out, 100, 20)
 
 
 NEIGHBOURHOOD_NAMES = {"box": "Moore box", "disc": "disc", "diamond": "von Neumann diamond"}
 
 
-@_automaton("young-neighbourhoods", "paper 003's automaton (Ra = 2, Ri = 5, wa = 1, wi = 0.2, self counted, 20 steps) "
-            "with Moore's box, the Euclidean disc and von Neumann's diamond as its neighbourhoods",
-            "paper 003 Fig. 1 (Moore and von Neumann neighbourhoods), Fig. B1")
+@_automaton("young-neighbourhoods", "Tinson's (2022) automaton (Ra = 2, Ri = 5, wa = 1, wi = 0.2, self counted, "
+            "20 steps) with Moore's box, the Euclidean disc and von Neumann's diamond as its neighbourhoods",
+            "Tinson 2022 Fig. 1 (Moore and von Neumann neighbourhoods), Fig. B1")
 def _young_neighbourhoods(seed, quick, out, frames):
     wa, wi = 1.0, 0.2
     cas = [mj.YoungCA([(2, 5, wa - wi, -wi)], shape, include_self=True) for shape in NEIGHBOURHOOD_NAMES]
     labels = [NEIGHBOURHOOD_NAMES[shape] for shape in NEIGHBOURHOOD_NAMES]
-    return _young_series(cas, labels, 3, "paper 003's code, Ra 2, Ri 5, wa 1, wi 0.2, t = 20",
+    return _young_series(cas, labels, 3, "Tinson's (2022) code, Ra 2, Ri 5, wa 1, wi 0.2, t = 20",
                          {"neighbourhoods": list(NEIGHBOURHOOD_NAMES)}, seed, out, 100, 20)
 
 
-# ---- paper 002: 3D, K species ------------------------------------------------------------
+# ---- Dur 2023: 3D, K species ------------------------------------------------------------
 DUR_K2 = (3.2, 6.0, 1.0, -0.2)  # R_act, R_inh, w_act, w_inh of both species (section 4.2)
 DUR_TABLE2 = ((6.0, 10.0, 1.0, -0.3), (4.0, 7.0, 1.0, -0.3), (4.3, 8.0, 1.0, -0.22))  # species 0-2 of Table 2
 DUR_TABLE2_W3 = -0.2  # w_{3,inh} is "variable" in Table 2 / Fig. 8; species 3 is otherwise (3.2, 6, 1, .)
 
 
 @_automaton("dur-fig6", "3D, L = 100, K = 2, both species (3.2, 6, 1, -0.2), run to convergence (< 1% changed); "
-            "section 4.2: 42.86% / 42.88% / 14.26% after 20 iterations", "paper 002 Fig. 6")
+            "section 4.2: 42.86% / 42.88% / 14.26% after 20 iterations", "Dur 2023 Fig. 6")
 def _dur_fig6(seed, quick, out, frames):
     ca = mj.YoungCA([DUR_K2, DUR_K2])
     size = 40 if quick else 100
@@ -170,7 +171,7 @@ def _dur_fig6(seed, quick, out, frames):
 
 
 @_automaton("dur-fig8", "3D, L = 100, K = 4 species of Table 2 (w_3,inh = -0.2), run to convergence",
-            "paper 002 Fig. 8 / Table 2")
+            "Dur 2023 Fig. 8 / Table 2")
 def _dur_fig8(seed, quick, out, frames):
     ca = mj.YoungCA([*DUR_TABLE2, (3.2, 6.0, 1.0, DUR_TABLE2_W3)])
     size = 48 if quick else 100
@@ -184,7 +185,7 @@ _eps0_series = jax.jit(jax.vmap(lambda cells: mj.order_parameter(cells, 2)[0]))
 
 
 @_automaton("dur-fig9", "order parameter eps_0 per iteration, K = 2, w_0,inh from -0.10 to -0.30 (identical starts)",
-            "paper 002 Fig. 9")
+            "Dur 2023 Fig. 9")
 def _dur_fig9(seed, quick, out, frames):
     size, steps = (32, 20) if quick else (100, 40)
     cells0 = mj.random_cells(jax.random.key(seed), (size,) * 3, 2)
@@ -219,7 +220,7 @@ FIG7_W0 = (-0.15, -0.18, -0.20, -0.25, -0.30)  # the text names -0.15 and -0.18;
 
 
 def _dur_series(species_for, values, k, name, seed, quick, out):
-    """Paper 002's converged-state series (Figs. 7 and 8): for each value, the automaton of
+    """Dur's (2023) converged-state series (Figs. 7 and 8): for each value, the automaton of
     `species_for(value)` (one denominator for the series, so the compiled run is reused)
     run to convergence from one start, shown as middle slices with each species' share."""
     size = 40 if quick else 100
@@ -244,7 +245,7 @@ def _dur_series(species_for, values, k, name, seed, quick, out):
 
 
 @_automaton("dur-fig7", "3D, L = 100, K = 2, w_0,inh from -0.15 to -0.30 (identical starts), run to convergence, "
-            "with each species' share of the volume", "paper 002 Fig. 7")
+            "with each species' share of the volume", "Dur 2023 Fig. 7")
 def _dur_fig7(seed, quick, out, frames):
     return _dur_series(lambda w0: [(3.2, 6.0, 1.0, w0), DUR_K2], FIG7_W0, 2, "w0_inh", seed, quick, out)
 
@@ -253,12 +254,12 @@ FIG8_W3 = FIG7_W0  # not printed; section 4.3 names the step from -0.15 to -0.18
 
 
 @_automaton("dur-fig8-series", "3D, L = 100, K = 4 species of Table 2 with w_3,inh from -0.15 to -0.30 (identical "
-            "starts), run to convergence, with each species' share of the volume", "paper 002 Fig. 8 / Table 2")
+            "starts), run to convergence, with each species' share of the volume", "Dur 2023 Fig. 8 / Table 2")
 def _dur_fig8_series(seed, quick, out, frames):
     return _dur_series(lambda w3: [*DUR_TABLE2, (3.2, 6.0, 1.0, w3)], FIG8_W3, 4, "w3_inh", seed, quick, out)
 
 
-# ---- paper 002 section 4.5: the order parameter against the weighted volume difference ---
+# ---- Dur 2023 section 4.5: the order parameter against the weighted volume difference ---
 WVD_STEPS = 50  # "after 50 iterations"
 WVD_SPECIES = (3.0, 6.0, 1.0, -0.2)  # r_act, r_inh, w_act, w_inh of the species held fixed
 
@@ -275,7 +276,7 @@ def _wvd_series(models, cells_for, steps):
 
 
 def _wvd_figure(name, figure, vary, values, k, seeded, description):
-    """A paper 002 section 4.5 preset: the first species' `vary` ("r_act" or "w_act") takes
+    """A Dur 2023 section 4.5 preset: the first species' `vary` ("r_act" or "w_act") takes
     `values` (the full series; `quick` takes every tenth), the other species keep
     `WVD_SPECIES`, every run lasts `WVD_STEPS` updates on a 30^3 lattice (20^3 quick) from
     one start (`seeded`) or a different start per value; the picture plots eps_j of every
@@ -328,13 +329,13 @@ def _wvd_figure(name, figure, vary, values, k, seeded, description):
 
 FIG10_R = np.round(np.arange(2800, 3701) / 1000, 3)  # R_0,act from 2.8 to 3.7 in steps of 0.001
 FIG12_W = np.round(np.arange(750, 2051) / 1000, 3)  # w_0,act from 0.75 to 2.05 (step not given: 0.001)
-_wvd_figure("dur-fig10", "paper 002 Fig. 10", "r_act", FIG10_R, 1, False,
+_wvd_figure("dur-fig10", "Dur 2023 Fig. 10", "r_act", FIG10_R, 1, False,
             "eps_0 against WVD_0, K = 1, R_0,act from 2.8 to 3.7 (901 runs), a different random start per run")
-_wvd_figure("dur-fig11", "paper 002 Fig. 11", "r_act", FIG10_R, 1, True,
+_wvd_figure("dur-fig11", "Dur 2023 Fig. 11", "r_act", FIG10_R, 1, True,
             "eps_0 against WVD_0, K = 1, R_0,act from 2.8 to 3.7, one start: a step per neighbourhood")
-_wvd_figure("dur-fig12", "paper 002 Fig. 12", "w_act", FIG12_W, 1, True,
+_wvd_figure("dur-fig12", "Dur 2023 Fig. 12", "w_act", FIG12_W, 1, True,
             "eps_0 against WVD_0, K = 1, R_0,act = 3, w_0,act from 0.75 to 2.05, one start")
-_wvd_figure("dur-fig13", "paper 002 Fig. 13", "r_act", FIG10_R, 3, True,
+_wvd_figure("dur-fig13", "Dur 2023 Fig. 13", "r_act", FIG10_R, 3, True,
             "eps_0, eps_1, eps_2 against WVD_0, K = 3 identical species but R_0,act from 2.8 to 3.7, one start")
 
 

@@ -1,4 +1,4 @@
-"""Paper 004's own grid setting (Lundelius, Figs. 1-3): Gray-Scott with Sims's kernel.
+"""Lundelius's own grid setting (Figs. 1-3): Gray-Scott with Sims's kernel.
 
 The paper weights each cell's 3 x 3 neighbourhood with [[0.05, 0.2, 0.05], [0.2, -1, 0.2],
 [0.05, 0.2, 0.05]], which is 0.3 times the nine-point stencil [[1, 4, 1], [4, -20, 4],
@@ -66,15 +66,15 @@ def _fig3(quick):
         phases=(Phase(model.replace(lower=(0.0, seeded_squares(side))), steps=1, dt=1.0, name="seed",
                       domain=domain),
                 Phase(model, steps=steps, dt=1.0, frames=IMAGES, name="gray-scott", domain=domain)),
-        description=f"paper 004 Fig. 3 on its {side}x{side} grid: Gray-Scott f {feed}, k {kill}, Sims's kernel (0.3 x "
+        description=f"Lundelius Fig. 3 on its {side}x{side} grid: Gray-Scott f {feed}, k {kill}, Sims's kernel (0.3 x "
                     f"the nine-point stencil, D_A 1.0, D_B 0.5), wrapped edges, A = 1 and B = 0 but {SQUARES} "
                     f"squares of {SQUARE}x{SQUARE} cells at B = 1, dt 1, {steps:,} iterations",
-        figure="paper 004 Fig. 3", show="v", cmap="gray")
+        figure="Lundelius Fig. 3", show="v", cmap="gray")
 
 
-register(ExperimentPreset("lundelius-fig3", "paper 004's own grid: Gray-Scott (f 0.055, k 0.064) with Sims's kernel "
+register(ExperimentPreset("lundelius-fig3", "Lundelius's own grid: Gray-Scott (f 0.055, k 0.064) with Sims's kernel "
                           "(0.3 x the nine-point stencil) from B = 1 on a few squares of a 100x100 grid",
-                          "paper 004 Fig. 3", _fig3))
+                          "Lundelius Fig. 3", _fig3))
 
 
 def _fig4_umbrella(quick):
@@ -86,11 +86,12 @@ def _fig4_umbrella(quick):
         name="lundelius-fig4-umbrella",
         initial=Initial("gray-scott", (mesh.n_vertices,), params=(0.02, seed_patches(mesh)), names=("u", "v")),
         phases=(Phase(model, steps=steps, dt=1.0, frames=IMAGES, name="gray-scott", domain=mesh),),
-        description=f"paper 004 Fig. 4 (icosphere) with its equally weighted Laplacian: Gray-Scott f {feed}, k {kill}, "
+        description=f"Lundelius Fig. 4 (icosphere) with its equally weighted Laplacian: Gray-Scott f {feed}, k {kill}, "
                     f"D_A 1.0, D_B 0.5 on the umbrella operator of an icosphere of {mesh.n_vertices} vertices, A = 1 "
                     f"and B = 0 but (0.5, 0.25) on 12 discs of radius 4 edges, dt 1, {steps:,} iterations",
-        figure="paper 004 Fig. 4 (umbrella Laplacian)", show="v", cmap="gray")
+        figure="Lundelius Fig. 4 (umbrella Laplacian)", show="v", cmap="gray")
 
 
-register(ExperimentPreset("lundelius-fig4-umbrella", "paper 004's mesh setting: Gray-Scott (f 0.055, k 0.064) with "
-                          "its equally weighted (umbrella) Laplacian on an icosphere", "paper 004 Fig. 4", _fig4_umbrella))
+register(ExperimentPreset("lundelius-fig4-umbrella", "Lundelius's mesh setting: Gray-Scott (f 0.055, k 0.064) with "
+                          "its equally weighted (umbrella) Laplacian on an icosphere", "Lundelius Fig. 4",
+                          _fig4_umbrella))

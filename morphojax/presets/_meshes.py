@@ -1,5 +1,5 @@
 """Presets on triangle meshes: Gray-Scott spots and stripes on a sphere and a torus, the
-leopard paper's Turing spots on a body-like capsule (paper 004's experiment, made stable),
+leopard paper's Turing spots on a body-like capsule (Lundelius's experiment, made stable),
 and Gray-Scott stripes that ring a capsule under anisotropic diffusion.
 
 Lengths are in the mesh's units, chosen so that an edge is about one lattice cell long:
@@ -62,7 +62,7 @@ def _gray_scott_mesh(name, surface, pattern):
             phases=(Phase(model, steps=steps, dt=_dt(mesh, model, 1.0), frames=4, name="static", domain=mesh),),
             description=f"Gray-Scott F={feed}, k={kill}, Du=0.2097, Dv=0.105 on a {surface} of {mesh.n_vertices} "
                         f"vertices (edge about 1): {what}",
-            figure="paper 004 (Lundelius), made stable", show="v", cmap="inferno")
+            figure="Lundelius, made stable", show="v", cmap="inferno")
 
     return build
 
@@ -71,7 +71,7 @@ for _surf in ("sphere", "torus"):
     for _pat in GS_PATTERNS:
         _name = f"mesh-gray-scott-{_pat}-{_surf}"
         register(ExperimentPreset(_name, f"Gray-Scott {GS_PATTERNS[_pat][2]} on a {_surf} mesh",
-                                  "paper 004 Fig. 4 (stable)", _gray_scott_mesh(_name, _surf, _pat)))
+                                  "Lundelius Fig. 4 (stable)", _gray_scott_mesh(_name, _surf, _pat)))
 
 
 # ---- the leopard paper's Turing spots on a body-like capsule -------------------------------

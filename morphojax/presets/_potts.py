@@ -1,4 +1,4 @@
-"""Cellular Potts presets (paper 003, section III.B, Figs. 10-11 and appendix D):
+"""Cellular Potts presets (Tinson 2022, section III.B, Figs. 10-11 and appendix D):
 `morphojax run potts-fig10` or `PRESETS["potts-fig11"].run()`.
 
 Every run starts from the paper's blob (100x100, radius 40, cells 5 wide, types drawn with
@@ -45,7 +45,7 @@ def _size(quick):
 
 
 def run_series(j_values, seed, quick, out: Path, title: str, ncols: int, row_labels=None, col_labels=None) -> dict:
-    """Paper 003's model at each like-type J from one blob; writes `out`, `out.npz`, `out.csv`."""
+    """Tinson's (2022) model at each like-type J from one blob; writes `out`, `out.npz`, `out.csv`."""
     size, radius, mcs = _size(quick)
     key = jax.random.key(seed)
     state = mj.potts_blob((size, size), radius, 5, key=key)
@@ -79,21 +79,21 @@ def run_series(j_values, seed, quick, out: Path, title: str, ncols: int, row_lab
 
 def _fig10(seed, quick, out, frames):
     if quick:
-        return run_series(FIG10_QUICK_J, seed, quick, out, "Potts, paper 003 appendix D (quick)", len(FIG10_QUICK_J))
-    return run_series(FIG10_J, seed, quick, out, "Potts, paper 003 Fig. 10 / appendix D: like-type J from 0.5 to 18",
+        return run_series(FIG10_QUICK_J, seed, quick, out, "Potts, Tinson 2022 appendix D (quick)", len(FIG10_QUICK_J))
+    return run_series(FIG10_J, seed, quick, out, "Potts, Tinson 2022 Fig. 10 / appendix D: like-type J from 0.5 to 18",
                       6, row_labels=[f"J {FIG10_J[6 * r]:g}" for r in range(6)],
                       col_labels=[f"+{0.5 * c:g}" for c in range(6)])
 
 
 def _fig11(seed, quick, out, frames):
-    return run_series(FIG11_J, seed, quick, out, "Potts, paper 003 Fig. 11: J = 3 (stripes), 15 (spots)", 2)
+    return run_series(FIG11_J, seed, quick, out, "Potts, Tinson 2022 Fig. 11: J = 3 (stripes), 15 (spots)", 2)
 
 
 register(PottsPreset("potts-fig10", "cellular Potts model, like-type J from 0.5 to 18 (unlike and medium 16): "
                      "bands of sorted cells at low J, single cells of one type among the other above 16",
-                     "paper 003 Fig. 10, appendix D", _fig10))
+                     "Tinson 2022 Fig. 10, appendix D", _fig10))
 register(PottsPreset("potts-fig11", "cellular Potts model at like-type J = 3 and J = 15",
-                     "paper 003 Fig. 11 (CPM column)", _fig11))
+                     "Tinson 2022 Fig. 11 (CPM column)", _fig11))
 
 
 def potts_picture(path: Path, scale: int | None = None):

@@ -1,4 +1,4 @@
-"""Solid textures: Gray-Scott on a 3D lattice (paper 004's future work, a texture carved
+"""Solid textures: Gray-Scott on a 3D lattice (Lundelius's future work, a texture carved
 from a volume), `morphojax run gray-scott-3d` or `PRESETS["gray-scott-3d"].run()`.
 
 The run writes its PNG `out` (evenly spaced slices of v along each axis), `out.npz` (the
@@ -91,4 +91,4 @@ def _gray_scott_3d(seed, quick, out: Path, frames):
 
 register(SolidPreset("gray-scott-3d", "Gray-Scott (Pearson's worms) on a 64^3 lattice, nineteen-point stencil: "
                                       "slices and an isosurface of a solid texture",
-                     "paper 004's future work (solid textures)", _gray_scott_3d))
+                     "Lundelius's future work (solid textures)", _gray_scott_3d))
