@@ -55,7 +55,8 @@ def register(subparsers) -> None:
                    help="compare the structure-tensor orientation of stripes (the default)")
     p.add_argument("--no-orientation", dest="orientation", action="store_false",
                    help="leave the orientation out of the statistics")
-    p.add_argument("--shape", type=int, nargs=2, default=D["shape"], metavar=("ROWS", "COLS"))
+    p.add_argument("--shape", type=int, nargs=2, default=D["shape"], metavar=("ROWS", "COLS"),
+                   help=f"the simulated lattice (default {' '.join(map(str, D['shape']))})")
     p.add_argument("--steps", type=int, default=D["steps"], help="steps per simulation (default: the family's)")
     p.add_argument("--window", type=int, default=D["window"],
                    help="steps differentiated at the end of each run (default: the family's)")
@@ -66,8 +67,10 @@ def register(subparsers) -> None:
     p.add_argument("--rounds", type=int, default=D["rounds"], help="refinement rounds of the design")
     p.add_argument("--keep", type=int, default=D["keep"], help="local searches from the best design points")
     p.add_argument("--method", default=D["method"], help="bfgs, lm, nelder-mead or gd")
-    p.add_argument("--max-steps", type=int, default=D["max_steps"])
-    p.add_argument("--seed", type=int, default=D["seed"])
+    p.add_argument("--max-steps", type=int, default=D["max_steps"],
+                   help=f"iteration budget of each local search (default {D['max_steps']})")
+    p.add_argument("--seed", type=int, default=D["seed"],
+                   help=f"the fit's random seed: design, simulation noise (default {D['seed']})")
     p.add_argument("--screen", default=D["screen"], choices=("heldout", "loss"),
                    help="with --model auto, order the screened families by their samples' distance to the held-out "
                         "tile (heldout, the default) or by the penalised training loss (loss)")

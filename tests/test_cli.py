@@ -118,6 +118,23 @@ def test_render(tmp_path):
     assert Image.open(tmp_path / "r.png").size == (96, 96)
 
 
+def test_every_option_of_every_command_has_a_help_text():
+    """`morphojax COMMAND --help` says what each option does: none is listed bare."""
+    import argparse
+
+    from morphojax.cli import build_parser
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    bare = [f"{name} {' / '.join(action.option_strings) or action.dest}"
+            for name, command in [("morphojax", parser), *commands.items()]
+            for action in command._actions
+            if not isinstance(action, (argparse._HelpAction, argparse._SubParsersAction))
+            and not (action.help and action.help.strip())]
+    assert len(commands) > 5 and "fit" in commands
+    assert not bare, f"options without a help text: {bare}"
+
+
 def test_bad_input_is_a_clear_error(tmp_path, capsys):
     assert main(["run", "tiger"]) == 2  # a clear message and the usage-error status, no traceback
     assert "unknown preset 'tiger'" in capsys.readouterr().err

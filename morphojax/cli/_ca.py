@@ -35,16 +35,18 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--species", type=_species, action="append", metavar="R_ACT,R_INH,W_ACT,W_INH",
                    help="one species (repeat for K species); default 3.2,6,1,-0.2")
     p.add_argument("--rule", default=None, help="a life-like rule instead, e.g. B3/S23 (0/1 cells, p = alive fraction)")
-    p.add_argument("--neighbourhood", choices=["disc", "box"], default="disc")
+    p.add_argument("--neighbourhood", choices=["disc", "box"], default="disc",
+                   help="disc: the radii as Euclidean distances (default); box: as Chebyshev distances, Young's "
+                        "square boxes")
     p.add_argument("--include-self", action="store_true", help="count the cell itself in its activator disc")
     p.add_argument("--dim", type=int, default=2, help="lattice dimension (default 2)")
     p.add_argument("--size", type=int, default=128, help="cells per side (default 128)")
     p.add_argument("--p", type=float, default=None,
                    help="probability a cell starts differentiated (Young: 0.015); default uniform over the K+1 states")
-    p.add_argument("--steps", type=int, default=50)
+    p.add_argument("--steps", type=int, default=50, help="synchronous updates to run (default 50)")
     p.add_argument("--stop-at-convergence", action="store_true", help="stop once < --threshold of the cells change")
     p.add_argument("--threshold", type=float, default=0.01, help="convergence threshold (fraction, default 0.01)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="random seed of the starting cells (default 0)")
     p.add_argument("--frames", action="store_true", help="also write intermediate snapshots (Young automata)")
     p.add_argument("--out", type=out_arg, default=Path("out") / "ca.png", help="output PNG (default out/ca.png)")
     p.add_argument("--quiet", action="store_true", help="print only the JSON line")
