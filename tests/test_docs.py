@@ -58,6 +58,28 @@ def test_the_site_shows_public_members_with_or_without_docstrings():
         assert f"api/{page}" in config, f"api/{page} is not in the site's navigation"
 
 
+def test_the_api_pages_leave_out_construction_machinery():
+    """`__check_init__` and its kind stay off the API pages; `__init__` and operations stay;
+    no private base is named."""
+    griffe = pytest.importorskip("griffe")
+    extension = "docs/_hooks/griffe_members.py:HideClassMachinery"
+    options = re.search(r"^\s+extensions:\s*\n\s+- (\S+)", (ROOT / "mkdocs.yml").read_text(encoding="utf-8"), re.M)
+    assert options and options.group(1) == extension, "mkdocstrings does not load the griffe extension"
+    path, name = extension.split(":")
+
+    def load(package):
+        return griffe.load(package, search_paths=[str(ROOT)], allow_inspection=False,
+                           extensions=griffe.load_extensions(f"{ROOT / path}:{name}"))
+
+    turing = load("morphojax")["Turing"].members
+    assert "__check_init__" not in turing and "__init__" in turing
+    assert "__getitem__" in load("morphojax.cells")["Cells"].members
+    # a private base is folded into the public class: its fields shown, its name not
+    schnakenberg = load("morphojax")["Schnakenberg"].final_target
+    assert {"a", "b", "du", "dv", "diffusion"} <= set(schnakenberg.members)
+    assert [str(base) for base in schnakenberg.bases] == ["AbstractReaction"]
+
+
 @pytest.mark.parametrize("package", PACKAGES)
 def test_every_public_name_is_in_the_api_reference(package):
     module = importlib.import_module(package)
