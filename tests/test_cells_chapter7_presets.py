@@ -3,8 +3,9 @@
 perturbation on, start from the same spots, and production and consumption move V the way
 they are named; the spot measure counts regions across the torus's edges. Fig. 7.9's plot
 is read from the model (its roots and which attract), and its cells settle at the values
-that attract. Two small runs (20 x 20 cells, 200 and 600 iterations) compile the cells'
-step twice: tens of seconds on a loaded 2-core machine."""
+that attract. Fig. 7.12's limits hold and saturate the reagents they name. Small runs
+(20 x 20 cells, 200 and 600 iterations) compile the cells' step three times: tens of
+seconds on a loaded 2-core machine."""
 
 from __future__ import annotations
 
@@ -17,8 +18,11 @@ from morphojax.models import ThesisReinforcement
 from morphojax.presets._cells_chapter7 import (
     FIG7_9_TEXT,
     FIG7_11_PANELS,
+    FIG7_12_PANELS,
     cubic_roots,
     fig7_11_text,
+    fig7_12_text,
+    saturation,
     spots,
 )
 
@@ -83,3 +87,23 @@ def test_fig7_9_cells_settle_on_the_cubics_attracting_values():
     r = np.asarray(mj.cells.simulate_cells(ThesisReinforcement(), cells, 600, 1.0).live()["concentration"][0])
     assert r.min() >= 0.0 and r.max() <= 1.0
     assert np.mean((r < 0.1) | (r > 0.9)) > 0.6 and np.mean(np.abs(r - 0.5) < 0.1) < 0.3
+
+
+def test_fig7_12_limits_saturate_the_reagents_they_name():
+    """The four panels on a 20 x 20 torus for 600 iterations (one compiled step: the panels
+    differ only in the cells' limits): a limited reagent never passes its limit and piles up
+    on it, an unlimited one has none; limiting V flattens its high regions."""
+    assert mj.PRESETS["thesis-fig7.12"].load().chemicals[0].limit == 6.3
+    found = {}
+    for panel, (_, limit_u, limit_v) in FIG7_12_PANELS.items():
+        listing = mj.load_listing(fig7_12_text(panel, side=20, stop=600))
+        assert [c.limit for c in listing.chemicals] == [limit_u, limit_v]
+        found[panel] = saturation(listing.run(seed=0))
+        for reagent, limit in (("U", limit_u), ("V", limit_v)):
+            if limit is None:
+                assert found[panel][reagent]["at_limit"] is None
+            else:
+                assert found[panel][reagent]["range"][1] <= limit + 1e-4
+                assert found[panel][reagent]["at_limit"] > 0.05, (panel, reagent)
+    assert found["a"]["V"]["range"][1] > 6.3  # without limits V's spots rise past them
+    assert found["c"]["V"]["at_limit"] > 0.3  # V's plateau at its limit

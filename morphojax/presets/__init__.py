@@ -26,7 +26,8 @@ from . import _saturation  # noqa: F401  (registers the thesis chapter 7 presets
 from . import _thesis_animals  # noqa: F401  (registers the thesis's frog and moray eel on a lattice)
 from . import _cells  # noqa: F401  (registers the thesis's cell experiments, run from its listings)
 from . import _cells_growth  # noqa: F401  (registers thesis Fig. 6.11: transitions on growing cells)
-from . import _cells_chapter7  # noqa: F401  (registers thesis chapter 7's unlisted figures on cells: Fig. 7.11)
+from . import _cells_chapter7  # noqa: F401  (registers thesis chapter 7's unlisted figures on cells: Figs. 7.9, 7.11, 7.12)
+from . import _saturation_map  # noqa: F401  (registers thesis Fig. 7.14 with its caption's areas)
 from . import _solids  # noqa: F401  (registers the 3D lattice's solid texture)
 from . import _lundelius  # noqa: F401  (registers paper 004's own grid setting)
 from ._automaton_outputs import run_automaton, run_life_like

@@ -1,5 +1,5 @@
 """Thesis chapter 7 on cells, the figures it prints no listing for: `morphojax run
-thesis-fig7.11` and `morphojax run thesis-fig7.9-cells`.
+thesis-fig7.11`, `thesis-fig7.12` and `thesis-fig7.9-cells`.
 
 Fig. 7.11, "stable spot pattern (a) perturbed by (b) reinforcement, (c) explicit
 production and (d) explicit consumption". Section 7.3 says only that reinforcement rules
@@ -34,6 +34,23 @@ reports), (c) 111, 0.22, (d) 121, 0.16 and moving 0.023: consumption keeps the s
 changing, as the text says of (d).
 
 `quick` runs a 30 x 30 grid, perturbed from 300 until 600 (the spots have just formed).
+
+Fig. 7.12, "a few patterns created by adding saturation limits to one or two reagents
+during reaction and diffusion": the thesis prints none of its experiments. The preset runs
+one Turing rule (alpha 16, beta 12, Du 0.08, Dv 0.01, scale 0.02: Fig. 7.15's rates, from
+4 +- 2) on an 80 x 80 torus of cells for 3000 iterations (Fig. 7.15's), four times: (a)
+without limits, for reference; (b) U limited at 5.2 (Fig. 7.15's limit); (c) V limited at
+5.2; (d) both limited at 6.3 (Fig. 7.13's). The summary (`saturation`) measures what
+section 7.3 says saturation does ("when one reagent hits its upper concentration limit,
+the other one is usually forced to zero ... large areas of zero concentration and others
+of maximum concentration"): per panel and reagent the range, the fraction of the cells at
+the limit and at 0, of the cells at a reagent's limit the fraction where the other is at
+0, V's spots (`spots`) and how much V still moves over the last 500 iterations. With seed
+0: V is 0 in every cell where U is at its limit, in (b) and (d), but U is never 0 where V
+is at its limit (the thesis's "usually" holds for U only); V is at 0 in 61% of the cells
+in (b) (24% in (a)) and at its limit in 66% in (c) and 48% in (d); (b)'s thin stripes
+still move at 3000 (0.28 per cell over 500 iterations), (c) and (d) have settled (0.004,
+0.014).
 
 Fig. 7.9, eq. 7.1's cubic reaction dR/dt = s (R - a)(R - b)(R - c) + D_R lap R with
 s 0.35, a 0.3, b 0.5, c 0.7: the function's plot (left) and its pattern (right), "the same
@@ -303,4 +320,103 @@ def _fig7_9():
 
 _fig7_9()
 
-__all__ = ["FIG7_11_PANELS", "Fig7_9Preset", "Fig7_11Preset", "cubic_roots", "fig7_11_text", "spots"]
+# ---- Fig. 7.12: saturation limits on one reagent or both ---------------------------------------
+FIG7_12_TEXT = """define chemical U{limit_u}
+define chemical V{limit_v}
+
+// ----- prepattern
+
+use chemical U conc 4 dev 2 diff 0.08
+use chemical V conc 4 dev 2 diff 0.01
+create sqr_grid {side} {side} wrap
+
+// ----- rules
+
+rule always react U V scale 0.02 turing alpha 16 beta 12
+stop at {stop}
+"""
+FIG7_12_PANELS = {  # panel: (label, U's limit, V's limit)
+    "a": ("(a) no limit", None, None),
+    "b": ("(b) U limited at 5.2", 5.2, None),
+    "c": ("(c) V limited at 5.2", None, 5.2),
+    "d": ("(d) U and V limited at 6.3", 6.3, 6.3),
+}
+FIG7_12_SIZE = {"side": 80, "stop": 3000}  # Fig. 7.15's iterations
+FIG7_12_QUICK = {"side": 30, "stop": 600}
+
+
+def fig7_12_text(panel: str, side: int, stop: int) -> str:
+    """The listing of one panel of Fig. 7.12 (see the module's notes)."""
+    _, u, v = FIG7_12_PANELS[panel]
+    return FIG7_12_TEXT.format(limit_u="" if u is None else f" limit {u:g}", limit_v="" if v is None else f" limit {v:g}",
+                               side=side, stop=stop)
+
+
+def saturation(cells) -> dict:
+    """How saturated the cells are: per reagent its range, the fraction of the cells at its
+    limit (within 1e-3; None where it has none) and at 0, and `others_zero`: of its cells
+    at the limit, the fraction where every other reagent is at 0 (section 7.3: "when one
+    reagent hits its upper concentration limit, the other one is usually forced to zero")."""
+    live = cells.live()
+    values = np.asarray(live["concentration"], np.float64)
+    zero = values <= 1e-3
+    out = {}
+    for k, (name, value, limit) in enumerate(zip(cells.species, values, np.asarray(cells.upper, np.float64))):
+        at = value >= limit - 1e-3 if np.isfinite(limit) else None
+        others = np.delete(zero, k, axis=0).all(axis=0)
+        out[name] = {"range": [round(float(value.min()), 3), round(float(value.max()), 3)],
+                     "at_limit": None if at is None else round(float(at.mean()), 3),
+                     "at_zero": round(float(zero[k].mean()), 3),
+                     "others_zero": round(float(others[at].mean()), 3) if at is not None and at.any() else None}
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Fig7_12Preset(CellPreset):
+    """Fig. 7.12's panels, each its own listing (`listing_of`); `load` gives panel (d)'s."""
+
+    def load(self, quick: bool = False):
+        return self.listing_of("d", quick)
+
+    def listing_of(self, panel: str, quick: bool = False):
+        return mj.load_listing(fig7_12_text(panel, **(FIG7_12_QUICK if quick else FIG7_12_SIZE)),
+                               name=f"fig7.12-{panel}")
+
+
+def _run_fig7_12(item: Fig7_12Preset, seed: int, quick: bool, out: Path) -> dict:
+    stop = (FIG7_12_QUICK if quick else FIG7_12_SIZE)["stop"]
+    shots = (stop - min(MOVING_WINDOW, stop // 2), stop)
+    t0 = time.perf_counter()
+    runs, measured = {}, {}
+    for panel in FIG7_12_PANELS:
+        runs[panel] = item.listing_of(panel, quick).snapshots(shots, seed=seed, progress=f"Fig. 7.12 ({panel})")
+        late, end = (np.asarray(c.live()["concentration"][1]) for c in runs[panel])
+        measured[panel] = {**saturation(runs[panel][-1]), "V_spots": spots(runs[panel][-1]),
+                           "moving": round(float(np.abs(end - late).mean()), 4)}
+    seconds = time.perf_counter() - t0
+    tiles = [mj.render_cells(r[-1], "V", size=300, style="voronoi") for r in runs.values()]
+    mj.montage(tiles, len(tiles), col_labels=[FIG7_12_PANELS[p][0] for p in runs],
+               title=f"V at iteration {stop} (each tile from its own minimum to maximum)").save(out)
+    final = runs["d"][-1]
+    meta = {"kind": "cells", "listing": "fig7.12-d", "text": item.load(quick).text, "dt": 1.0,
+            "warnings": [], "preset": item.name, "seed": seed, "iterations": list(shots), "quick": quick}
+    files = [out, save_cells(out.with_suffix(".npz"), final, meta), write_cells_svg(final, out.with_suffix(".svg"), "V")]
+    return {"listing": "fig7.12-a..d", "iterations": [stop], "cells": [int(final.count)], "saturation": measured,
+            "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
+
+
+def _fig7_12():
+    def build(seed, quick, out, frames):
+        return _run_fig7_12(item, seed, quick, out)
+
+    item = Fig7_12Preset(
+        "thesis-fig7.12", "saturation limits on one reagent or both (none; U at 5.2; V at 5.2; both at 6.3) on one "
+        "Turing rule (Du 0.08, scale 0.02) on an 80x80 torus of cells, 3000 iterations (the thesis prints none of its "
+        "experiments: chosen); the cells at each limit and at 0 measured", "thesis Fig. 7.12 (reconstructed: no "
+        "experiments printed)", build, listing="fig7.12")
+    register(item)
+
+
+_fig7_12()
+
+__all__ = ["FIG7_11_PANELS", "FIG7_12_PANELS", "Fig7_9Preset", "Fig7_11Preset", "Fig7_12Preset", "cubic_roots", "fig7_11_text", "fig7_12_text", "saturation", "spots"]
