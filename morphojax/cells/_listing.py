@@ -63,18 +63,7 @@ import numpy as np
 from .._checks import check_count
 from .._render import Gradient
 from .._status import SimulationError
-from ._listing_commands import (
-    HEAT,
-    SLOTS,
-    Chemical,
-    Command,
-    Create,
-    SetCells,
-    Snap,
-    UseChemical,
-    UsePolarity,
-    _rgb,
-)
+from ._listing_commands import HEAT, SLOTS, Chemical, Command, Snap, _rgb
 from ._listing_prepattern import _Prepattern
 from ._listing_read import _Reader
 from ._listing_tokens import ListingError, format_number
@@ -471,7 +460,4 @@ def _as_path(source) -> Path | None:
     return None
 
 
-__all__ = [
-    "LISTINGS", "Chemical", "Create", "Listing", "ListingError", "SetCells", "Snap", "UseChemical", "UsePolarity",
-    "listing_path", "load_listing", "same_rules",
-]
+__all__ = ["LISTINGS", "Listing", "ListingError", "listing_path", "load_listing", "same_rules"]

@@ -1,4 +1,4 @@
-"""The classic two-species reaction-diffusion systems of the literature (paper 003 section
+"""The classic two-species reaction-diffusion systems of the literature (Tinson 2022 section
 II.C lists them): Gray-Scott, FitzHugh-Nagumo, Gierer-Meinhardt, Schnakenberg and the
 Brusselator, each in its standard form with (u, v) as species.
 
@@ -60,7 +60,7 @@ class GrayScott(AbstractReaction):
 
 
 class FitzHughNagumo(AbstractReaction):
-    """FitzHugh-Nagumo model as printed in paper 003 (section II.C.1):
+    """FitzHugh-Nagumo model as printed in Tinson 2022 (section II.C.1):
 
         du/dt = (a - u)(u - 1) u - v + Du lap(u)
         dv/dt = epsilon (b u - v) + Dv lap(v)
@@ -112,7 +112,7 @@ class GiererMeinhardt(AbstractReaction):
         dv/dt = rho (u^2 - nu v) + Dv lap(v)
 
     u is the activator, v the inhibitor; `rho` sets the reaction speed, `mu` and `nu` the
-    decay rates. The homogeneous state is (nu / mu, nu / mu^2). Paper 003 (section II.C.2)
+    decay rates. The homogeneous state is (nu / mu, nu / mu^2). Tinson 2022 (section II.C.2)
     prints this model with two typos: the inhibitor appears as an undefined `h` (the
     original paper's letter for it) in both equations, and the second reads
     rho (V^2 - nu h), squaring the inhibitor instead of the activator; the form above is
@@ -158,8 +158,29 @@ class GiererMeinhardt(AbstractReaction):
         return self.nu / self.mu, self.nu / self.mu**2
 
 
-class Schnakenberg(AbstractReaction):
-    """Schnakenberg model (Schnakenberg 1979; paper 003 section II.C.3):
+class _AbstractRatesAB(AbstractReaction):
+    """Base of the two-species reactions with two non-negative rates `a`, `b` (Schnakenberg,
+    Brusselator): their fields, checks and diffusion rates; each final model adds its own
+    `__init__` (its defaults), reaction and homogeneous state."""
+
+    species: ClassVar[tuple[str, ...]] = ("u", "v")
+    a: Array
+    b: Array
+    du: Array
+    dv: Array
+    lower: Array
+    upper: Array
+
+    def __check_init__(self):
+        check_parameters(self, "a", "b", "du", "dv", low=0.0)
+        check_limits(self)
+
+    def diffusion(self):
+        return species_stack((self.du, self.dv), 2, f"{type(self).__name__} diffusion")
+
+
+class Schnakenberg(_AbstractRatesAB):
+    """Schnakenberg model (Schnakenberg 1979; Tinson 2022 section II.C.3):
 
         du/dt = a - u + u^2 v + Du lap(u)
         dv/dt = b - u^2 v + Dv lap(v)
@@ -172,28 +193,13 @@ class Schnakenberg(AbstractReaction):
     diffusion rates set a wavelength of about 8-9 cells); spots around (1, 0.9).
     """
 
-    species: ClassVar[tuple[str, ...]] = ("u", "v")
-    a: Array
-    b: Array
-    du: Array
-    dv: Array
-    lower: Array
-    upper: Array
-
     def __init__(self, a=0.1, b=0.9, du=0.5, dv=10.0, lower=0.0, upper=math.inf):
         set_parameters(self, lower, upper, a=a, b=b, du=du, dv=dv)
-
-    def __check_init__(self):
-        check_parameters(self, "a", "b", "du", "dv", low=0.0)
-        check_limits(self)
 
     def reaction(self, x):
         u, v = x[0], x[1]
         uuv = u * u * v
         return jnp.stack([self.a - u + uuv, self.b - uuv])
-
-    def diffusion(self):
-        return species_stack((self.du, self.dv), 2, "Schnakenberg diffusion")
 
     def unclamped_state(self):
         """(u, v) = (a + b, b / (a + b)^2), where the reaction vanishes."""
@@ -201,8 +207,8 @@ class Schnakenberg(AbstractReaction):
         return total, self.b / total**2
 
 
-class Brusselator(AbstractReaction):
-    """Brusselator (Prigogine and Lefever 1968), standard form; paper 003 only names it:
+class Brusselator(_AbstractRatesAB):
+    """Brusselator (Prigogine and Lefever 1968), standard form; Tinson 2022 only names it:
 
         du/dt = a - (b + 1) u + u^2 v + Du lap(u)
         dv/dt = b u - u^2 v + Dv lap(v)
@@ -214,28 +220,13 @@ class Brusselator(AbstractReaction):
     Dv / Du = 10): a = 1.5, b = 3, Du = 1, Dv = 10 give spots of wavelength about 7-9 cells.
     """
 
-    species: ClassVar[tuple[str, ...]] = ("u", "v")
-    a: Array
-    b: Array
-    du: Array
-    dv: Array
-    lower: Array
-    upper: Array
-
     def __init__(self, a=1.5, b=3.0, du=1.0, dv=10.0, lower=0.0, upper=math.inf):
         set_parameters(self, lower, upper, a=a, b=b, du=du, dv=dv)
-
-    def __check_init__(self):
-        check_parameters(self, "a", "b", "du", "dv", low=0.0)
-        check_limits(self)
 
     def reaction(self, x):
         u, v = x[0], x[1]
         uuv = u * u * v
         return jnp.stack([self.a - (self.b + 1.0) * u + uuv, self.b * u - uuv])
-
-    def diffusion(self):
-        return species_stack((self.du, self.dv), 2, "Brusselator diffusion")
 
     def unclamped_state(self):
         """(u, v) = (a, b / a), where the reaction vanishes."""
@@ -244,7 +235,7 @@ class Brusselator(AbstractReaction):
 
 class Thomas(AbstractReaction):
     """Thomas's substrate-inhibition model (Thomas 1975; Murray, Mathematical Biology II,
-    2003, chapter 2), named by paper 003:
+    2003, chapter 2), named by Tinson 2022:
 
         du/dt = a - u - R + Du lap(u)
         dv/dt = alpha (b - v) - R + Dv lap(v),     R = rho u v / (1 + u + K u^2)
