@@ -58,6 +58,41 @@ def test_one_step_pieces_give_the_bits_of_one_call(setup, solver):
     np.testing.assert_array_equal(np.asarray(plain.fields), np.asarray(shown.fields))
 
 
+def test_status_of_one_call_and_of_pieces(setup):
+    """A one-piece run's status comes whole out of the compiled program; a progress bar's
+    pieces merge theirs: the same fields, dtypes and values."""
+    from morphojax import _loop
+    from morphojax._simulate import _prepare
+
+    model, state = setup
+    steps = 6500  # a progress bar cuts this into pieces
+    one = mj.run_status(model, state, steps, 0.008).status
+    domain, cfg, dt, sources, plan, solver = _prepare(model, state, steps, 0.008, None, None, None, "clip", None, (),
+                                                      None, True, None, None, None, None)
+    final, merged, _ = _loop.drive(model, domain, state, steps, dt, cfg, None, sources, None, None, None, True, None,
+                                   None, "pieces", plan, solver)
+    assert int(final.step) == steps
+    for name in ("nonfinite_step", "overflow", "steady_at", "steps_taken", "incomplete"):
+        a, b = getattr(one, name), getattr(merged, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert int(one.steps_taken) == steps and int(one.nonfinite_step) == -1 and one.ok is True
+
+
+@pytest.mark.parametrize("value", [0.1, 0.003, np.float64(0.2), 3, np.float32(0.7), np.array(0.25)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float16, jax.numpy.bfloat16])
+def test_dt_converted_on_the_host_as_on_the_device(value, dtype):
+    """A number's dt, converted on the host and put once, is the value the device
+    conversion gave (to the default float, then to the fields' dtype)."""
+    from morphojax._checks import as_float_array
+    host = as_float_array(value, "dt", dtype)
+    device = as_float_array(jax.numpy.asarray(as_float_array(value, "dt")), "dt").astype(dtype)
+    assert host.dtype == device.dtype and not host.weak_type
+    np.testing.assert_array_equal(np.asarray(host), np.asarray(device))
+    with pytest.raises(ValueError, match="real, not complex"):
+        as_float_array(1j, "dt", dtype)
+
+
 def test_rollout_snapshots_match_simulate(setup):
     model, state = setup
     final, frames = mj.rollout(model, state, steps=100, dt=0.008, every=25)

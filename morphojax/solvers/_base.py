@@ -19,6 +19,7 @@ import abc
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._bounds import Barrier
 from ..models import AbstractModel, per_species
@@ -67,7 +68,39 @@ class Euler(AbstractSolver):
         return None
 
     def check_dt(self, domain, dt, model) -> None:
-        domain.check_dt(dt, model.max_diffusion())
+        domain.check_dt(dt, _max_diffusion(model))
+
+
+_MAX_DIFFUSION: dict = {}  # model.max_diffusion() by the model's structure and parameter values
+_KEYED_VALUES = 65_536  # parameters a key may hold; larger models are not kept
+
+
+def _max_diffusion(model) -> float:
+    """`model.max_diffusion()`, worked out once for each structure and parameter values:
+    it evaluates the rates eagerly, which cost more than the rest of a short run's checks.
+    A model with a traced or unhashable leaf, or more than `_KEYED_VALUES` values, is
+    evaluated each time."""
+    leaves, treedef = jax.tree_util.tree_flatten(model)
+    if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves) or sum(
+            int(np.size(leaf)) for leaf in leaves) > _KEYED_VALUES:
+        return model.max_diffusion()
+    try:
+        key = (treedef, tuple(_value_key(leaf) for leaf in leaves))
+        value = _MAX_DIFFUSION.get(key)
+    except (TypeError, ValueError):  # a leaf or static field that cannot be read or hashed
+        return model.max_diffusion()
+    if value is None:
+        if len(_MAX_DIFFUSION) >= 256:
+            _MAX_DIFFUSION.clear()
+        value = _MAX_DIFFUSION[key] = model.max_diffusion()
+    return value
+
+
+def _value_key(leaf):
+    if not isinstance(leaf, (jax.Array, np.ndarray, np.generic)):
+        return leaf
+    values = np.asarray(leaf)
+    return values.shape, values.dtype.str, values.tobytes()
 
 
 def reaction_and_limit(acting, bounds, ndim: int):
