@@ -335,6 +335,8 @@ def fit_one(name: str, which: str, seed: int, wavelength: float, photo: np.ndarr
             "convincing": getattr(result, "convincing", None), "heldout": getattr(result, "heldout", {}) or {},
             "training_wavelength": float(np.ravel((result.stats or {}).get("target", {}).get("wavelength", [np.nan]))[0]),
             "rejected": getattr(result, "rejected", None), "scale_snap": (result.config or {}).get("scale_snap"),
+            "ranking": [{k: r.get(k) for k in ("family", "stage", "heldout", "rejected")} for r in result.ranking],
+            "true_family_rank": next((k + 1 for k, r in enumerate(result.ranking) if r["family"] == family), None),
             "seconds": seconds, "load": os.getloadavg()[0]}
 
 
@@ -349,6 +351,8 @@ def table_row(r) -> str:
         return (f"| {r['case']} | {r['degradation']} | {r['family']} | **ERROR: {r['error']}** | | | | | | "
                 f"{r['seconds']:.0f} |")
     fam = r["fitted_family"] if r["right"] else f"**WRONG: {r['fitted_family']}**"
+    if not r["right"] and r.get("true_family_rank"):  # where the ranking (held-out distance) put the right one
+        fam += f" (right one {r['true_family_rank']}.)"
     errors = ", ".join(f"{k} {v:.0%}" if k != "angle" else f"{k} {v:.2f} rad" for k, v in r["errors"].items())
     lam = f"{r['expected_wavelength']:.1f} / {r.get('training_wavelength', float('nan')):.1f} / {r['fitted_wavelength']:.1f} "
     lam += f"({r['wavelength_error']:+.0%})" if close(r) else f"(**off {r['wavelength_error']:+.0%}**)"

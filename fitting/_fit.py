@@ -7,10 +7,10 @@
    oriented family's angle turned to the target's stripes). The target's wavelength is its
    pattern's (`fitting._verdict.target_wavelength`); a point off it (grid-scale, or more than
    20% away) scores DEGENERATE_PENALTY more, and a local search that ends off it keeps its
-   start. Each fitted saturation limit
-   is scanned across its bounds at the best point so far (`LIMIT_SCAN` points). Then
-   `rounds` Latin hypercubes in boxes around the best `keep` points (not moved again),
-   kept within two scan steps along a limit whose scan found a narrow band (`_is_band`).
+   start. Each fitted saturation limit is scanned across its bounds at the best point so
+   far, and a narrow band it finds is profiled along the parameters that trade against it
+   (`fitting._limits`). Then `rounds` Latin hypercubes in boxes around the best `keep`
+   points (not moved again), their points on the limits' bands.
 3. Noise: at the best design point the seed-to-seed spread of each statistic is measured,
    so the loss is in units of simulation noise (a diagonal synthetic likelihood).
 4. Local stage from each kept point: an Optimistix solver on the unconstrained
@@ -44,6 +44,7 @@ import numpy as np
 
 import morphojax as mj
 
+from ._limits import LIMIT_SCAN, scan_limits
 from ._result import FitResult
 from ._scale import moved_length, snap_threshold, snap_to_wavelength
 from ._simulator import Simulator, fixed_tuple
@@ -52,8 +53,6 @@ from ._stats import distance, mean_stats, noise_of, residuals, texture_stats
 from ._verdict import off_scale, target_wavelength, wavelength_of
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
-LIMIT_SCAN = 48  # points of a fitted limit's scan, about 2% of its bounds apart
-BAND_RISE = 1.1  # a scan's minimum is a band when both its neighbours score 10% more (`_is_band`)
 DEGENERATE_PENALTY = 1e6  # added to a design point's loss when it is off the target's scale
 
 
@@ -83,6 +82,7 @@ class FitState:
     length: int | None  # the family's length parameter's index, for the move to the target's scale
     length_power: float
     settings: dict  # method, max_steps, learning_rate, fallback, seeds, seed, noise_seeds
+    bands: tuple = ()  # the saturation limits' bands the global stage profiled (`fitting._limits`)
 
 
 def _as_template(model, shape):
@@ -341,21 +341,12 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     rng = np.random.default_rng(seed)
     rec.stage = "design"
     all_unit, thetas, losses, wavelengths = evaluate(space.design(n_design, design, seed), move=True)
-    widest = np.full(space.size, np.inf)  # the rounds' boxes' half-width along each coordinate, at most
-    for i in space.limits:
-        # A limit acts only where it binds, and a target made near the limit that just lets
-        # the pattern form has a basin a few hundredths of the bounds wide along it (the
-        # bounded-Ua target: the loss is lowest within about 0.2 of the true Ua, at every
-        # ratio; fit_synthetic.md), which neither the design nor a gradient (zero where it
-        # does not bind) finds. So each fitted limit is scanned across its bounds at the
-        # best point so far, LIMIT_SCAN points 1/LIMIT_SCAN of the bounds apart.
-        rec.stage = "limits"
-        line = np.repeat(all_unit[np.argmin(losses)][None], LIMIT_SCAN, axis=0)
-        line[:, i] = (np.arange(LIMIT_SCAN) + 0.5) / LIMIT_SCAN
-        u_new, th_new, l_new, w_new = evaluate(line, move=False)
-        k = int(np.argmin(l_new))
-        if l_new[k] < losses.min() and _is_band(l_new, k):  # the rounds stay in the band
-            widest[i] = 2.0 / LIMIT_SCAN
+    # each fitted limit scanned at the best point so far, its band profiled along the
+    # parameters that trade against it (`fitting._limits`)
+    trading = [j for j in range(space.size) if j not in space.limits and j != length and j != angle]
+    scans, bands = scan_limits(evaluate, all_unit[np.argmin(losses)], float(losses.min()), space.limits, trading,
+                               rec)
+    for u_new, th_new, l_new, w_new in scans:
         all_unit = np.concatenate([all_unit, u_new])
         thetas, losses = np.concatenate([thetas, th_new]), np.concatenate([losses, l_new])
         wavelengths = np.concatenate([wavelengths, w_new])
@@ -364,9 +355,12 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     for _ in range(int(rounds)):
         best_u = all_unit[np.argsort(losses)[:keep]]
         local = []
-        for u in best_u:  # a Latin hypercube in a box around each of the best so far
+        for u in best_u:  # a Latin hypercube in a box around each of the best so far, on the limits' bands
             box = space.design(max(2, n_design // keep), "lhs", int(rng.integers(1 << 30)))
-            local.append(np.clip(u + (2 * box - 1) * np.minimum(half, widest), 1e-4, 1 - 1e-4))
+            points = np.clip(u + (2 * box - 1) * half, 1e-4, 1 - 1e-4)
+            for band in bands:
+                points = band.place(points, 2 * box[:, band.limit] - 1)
+            local.append(points)
         # the boxes surround moved points already at the target's wavelength: not moved again
         u_new, th_new, l_new, w_new = evaluate(np.concatenate(local), move=False)
         all_unit = np.concatenate([all_unit, u_new])
@@ -403,7 +397,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     state = FitState(sim, space, stats, keys, noise, length, length_power,
                      {"method": method, "max_steps": max_steps, "learning_rate": learning_rate, "fallback": fallback,
-                      "seeds": seeds, "seed": seed, "noise_seeds": noise_seeds})
+                      "seeds": seeds, "seed": seed, "noise_seeds": noise_seeds}, tuple(bands))
     t0 = time.perf_counter()
     starts = [space.to_free(thetas[i]) for i in order[: min(keep, len(order))]]
     finals = _local_stage(state, tstats, starts, rec)
@@ -527,9 +521,11 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
         t0 = time.perf_counter()
         rec.stage = "intervals"
         inflate = best_loss / floor if floor > 0 and np.isfinite(best_loss) else 1.0
+        u_best = space.to_unit(np.asarray(theta_best))
+        valley = np.concatenate([np.empty((0, space.size))] + [band.valley(u_best) for band in state.bands])
         ivals, undetermined, correlated, better = interval_report(
             sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate, seed=state.settings["seed"],
-            floor=floor, floor_losses=floor_losses)
+            floor=floor, floor_losses=floor_losses, valley=valley)
         timings["intervals"] = time.perf_counter() - t0
     if better is not None and restart:
         t0 = time.perf_counter()
@@ -588,17 +584,6 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
     refined.config["refined"] = {"from": dict(result.params), "training_loss": result.loss,
                                  "training_noise_floor": result.noise_floor, "method": refined.config["method"]}
     return refined
-
-
-def _is_band(scan_losses, k: int) -> bool:
-    """Whether a limit scan's minimum at index k is a narrow band: both neighbours one scan
-    step away score at least BAND_RISE times more. Then the refinement rounds' boxes span two
-    scan steps either side of it along the limit, where a box a quarter of the bounds wide
-    would put few points in it (bounded-Ua: its neighbours 18% and 29% higher; the five
-    photos' lower_b scans at most 5%, fit_synthetic.md)."""
-    if k == 0 or k == len(scan_losses) - 1:
-        return False
-    return bool(min(scan_losses[k - 1], scan_losses[k + 1]) > BAND_RISE * scan_losses[k])
 
 
 def _tolist(tree):

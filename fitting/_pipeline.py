@@ -90,9 +90,11 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
             simulations); seed: the fit's random seed.
         design, n_design, rounds, keep: the global stage: a "lhs" or "grid" design of
             n_design points (default 12 per fitted parameter), a scan of each fitted limit
-            (`LIMIT_SCAN` points across its bounds), then `rounds` Latin hypercubes in boxes
-            (halving each round; two scan steps wide along a limit whose scan found a narrow
-            band) around the best `keep`, which start local searches.
+            (`LIMIT_SCAN` points across its bounds; a narrow band it finds is scanned again
+            at three other values of each parameter that trades against the limit, such as
+            the ratio: `fitting._limits`), then `rounds` Latin hypercubes in boxes (halving
+            each round; along a banded limit, two scan steps either side of the band's curve)
+            around the best `keep`, which start local searches.
         method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
             iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
         stats: which statistics and how they are weighted (default `StatsConfig()`: pigment

@@ -42,6 +42,13 @@ group: on a second spots target (seed 10,001) the floor was 5.6 and the truth sc
 above the 9.7 that one degree per group allowed. Each parameter's interval spans the Laplace
 interval and every accepted point: a projection of the joint region, so conservative.
 
+A saturation limit's band is narrower than any step of the walk, and it bends as the ratio
+moves (`fitting._limits`): the saturated-Ua target's fit sat at ratio 33.9, Ua 4.03 at a
+loss below the truth's (ratio 20, Ua 4.4), and the region around it gave the ratio 30.9-34.2.
+Where the fit's global stage profiled such a band, points along its valley (the path from
+the optimum through the profile's minima, `Band.valley`) are accepted into the region too:
+samples along the trade-off, which no box around the optimum reaches.
+
 A parameter is *undetermined* when its 95% interval spans more than half its bounds (in
 unit coordinates), or when the information matrix is singular along it (a flat direction,
 such as upper_a above where it binds).
@@ -205,7 +212,7 @@ BETTER = 0.98  # the region holds a better optimum where a point's loss is below
 
 
 def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04, inflate: float = 1.0,
-                    seed: int = 0, floor: float = 0.0, floor_losses=None):
+                    seed: int = 0, floor: float = 0.0, floor_losses=None, valley=None):
     """({name: (low, high)} in natural units, [undetermined names], [correlated pairs],
     better) at the fitted `theta` (`correlated_pairs`); `better` is None, or (theta, loss)
     of the lowest point the region's walk found when its loss is below BETTER x the fit's:
@@ -213,7 +220,9 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     on from there, `fitting._fit._conclude`);
     `inflate` (>= 1) multiplies the variances (loss / noise floor for a misspecified fit);
     `floor`, the fit's noise floor (the mean of `floor_losses`, single samples' losses),
-    sets the region's absolute threshold (module docstring, `sample_quantile`)."""
+    sets the region's absolute threshold (module docstring, `sample_quantile`); `valley`
+    (unit points, or None) are samples along a saturation limit's trade-off
+    (`fitting._limits.Band.valley`), accepted into the region as its own points are."""
     from scipy.stats import chi2
 
     u_star = space.to_unit(np.asarray(theta))
@@ -249,6 +258,9 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     best = float(losses_at(u_star[None])[0])
     delta = max(scale * float(chi2.ppf(0.95, d)), sample_q95 - best)  # the likelihood-ratio region
     region, _ = likelihood_region(losses_at, u_star, sd, delta, seed, star_loss=best)
+    if valley is not None and len(valley):
+        along = np.asarray(valley, np.float64)
+        region = np.concatenate([region, along[losses_at(along) <= best + delta]])
     low, high = np.minimum(low, region.min(axis=0)), np.maximum(high, region.max(axis=0))
     und = undetermined_mask(low, high, flat)
     out = {}

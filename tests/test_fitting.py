@@ -484,7 +484,7 @@ def test_a_fitted_limit_is_scanned_across_its_bounds():
     from a two-point design with no rounds and no local search, comes back within a few scan
     steps of the truth (without the scan: 2.9 away, since the design's point nearest the
     truth, Ua 4.65, forms no pattern)."""
-    from fitting._fit import LIMIT_SCAN
+    from fitting._limits import LIMIT_SCAN
 
     sim = fitting.Simulator(mj.Turing(), shape=(24, 24), steps=3000, window=300)
     truth = {"ratio": 12.0, "scale": 1.0, "upper_a": 5.0}
@@ -504,12 +504,55 @@ def test_a_limit_scans_narrow_minimum_is_a_band():
     """The refinement rounds keep to a limit's band only where the scan's minimum is narrow:
     both neighbours at least 10% higher (bounded-Ua's scan: 110 | 85 | 101), not a smooth
     minimum (the cheetah's lower_b: 1214 | 1164 | 1220) nor one at the scan's end."""
-    from fitting._fit import _is_band
+    from fitting._limits import is_band
 
-    assert _is_band(np.array([120.0, 110.1, 85.1, 100.6, 104.0]), 2)
-    assert not _is_band(np.array([1288.9, 1213.8, 1164.3, 1220.4, 1364.0]), 2)
-    assert not _is_band(np.array([110.1, 85.1, 100.6]) * np.array([1.0, 1.0, 0.9]), 1)
-    assert not _is_band(np.array([50.0, 85.1, 100.6]), 0)
+    assert is_band(np.array([120.0, 110.1, 85.1, 100.6, 104.0]), 2)
+    assert not is_band(np.array([1288.9, 1213.8, 1164.3, 1220.4, 1364.0]), 2)
+    assert not is_band(np.array([110.1, 85.1, 100.6]) * np.array([1.0, 1.0, 0.9]), 1)
+    assert not is_band(np.array([50.0, 85.1, 100.6]), 0)
+
+
+def test_a_limits_band_is_profiled_along_the_parameter_it_trades_with():
+    """A band that moves with the ratio (place 0.3 + 0.4 u_ratio in unit coordinates, loss
+    lowest at u_ratio 0.2) scanned at the design's best (u_ratio 0.8) is scanned again at
+    the other profile values: the band's curve comes out within a scan step of the truth
+    everywhere, the lower basin at another ratio is found, and the rounds' points put on the
+    band lie on it."""
+    from types import SimpleNamespace
+
+    from fitting._limits import BAND_HALF_WIDTH, LIMIT_SCAN, PROFILE_POINTS, scan_limits
+
+    def true_band(u_ratio):
+        return 0.3 + 0.4 * u_ratio
+
+    def evaluate(units, move):  # (units, parameters, losses, wavelengths), as the design's
+        units = np.asarray(units, np.float64)
+        off = np.minimum(np.abs(units[:, 1] - true_band(units[:, 0])) / 0.03, 1.0)
+        losses = 10.0 + 100.0 * off + 20.0 * (units[:, 0] - 0.2) ** 2
+        return units, units, losses, np.full(len(units), 10.0)
+
+    start = np.array([0.8, 0.5])
+    evaluations, bands = scan_limits(evaluate, start, float(evaluate(start[None], False)[2][0]), [1], [0],
+                                     SimpleNamespace(stage=None))
+    assert len(evaluations) == 1 + 1 + (PROFILE_POINTS - 1)  # the scan, the moved starts, three profiles
+    (band,) = bands
+    u_ratio = np.linspace(0.1, 0.9, 9)
+    grid = np.stack([u_ratio, np.zeros_like(u_ratio)], axis=1)
+    assert np.abs(band.at(grid) - true_band(u_ratio)).max() < 1.0 / LIMIT_SCAN
+    placed = band.place(grid, np.linspace(-1, 1, 9))
+    assert np.abs(placed[:, 1] - true_band(u_ratio)).max() < BAND_HALF_WIDTH + 1.0 / LIMIT_SCAN
+    units = np.concatenate([e[0] for e in evaluations])
+    losses = np.concatenate([e[2] for e in evaluations])
+    assert units[np.argmin(losses)][0] < 0.4  # the profile reached the lower basin
+    # the intervals' samples along the valley: from the optimum through every profile
+    # minimum, on the band (the middle of each three) and a scan step either side of it
+    valley = band.valley(np.array([0.8, true_band(0.8)]))
+    on_band = valley[1::3]
+    assert np.abs(on_band[:, 1] - true_band(on_band[:, 0])).max() < 1.0 / LIMIT_SCAN
+    assert np.allclose(valley[0::3, 1] + 1.0 / LIMIT_SCAN, on_band[:, 1])
+    assert on_band[:, 0].min() < 0.2 and on_band[:, 0].max() >= 0.8
+    single, _ = scan_limits(evaluate, start, 1e9, [1], [], SimpleNamespace(stage=None))
+    assert np.concatenate([e[0] for e in single])[:, 0].min() == 0.8  # without a trading parameter: one scan
 
 
 def test_auto_ranks_every_screened_family():
