@@ -6,7 +6,8 @@ target made near the limit that just lets the pattern form has a basin a few hun
 the bounds wide along it (the bounded-Ua target: the loss is lowest within about 0.2 of the
 true Ua; fit_synthetic.md), which neither the design nor a gradient finds. So each fitted
 limit is scanned across its bounds at the best point so far (`LIMIT_SCAN` points
-1/LIMIT_SCAN of the bounds apart).
+1/LIMIT_SCAN of the bounds apart), and where its minimum is a band, found again at 1/FINE
+of a scan step around it.
 
 Where the scan's minimum is a narrow band (`is_band`), the band moves with the parameters
 that trade against the limit: on the saturated-Ua target (true ratio 20, Ua 4.4) the
@@ -31,6 +32,8 @@ BAND_RISE = 1.1  # a scan's minimum is a band when both its neighbours score 10%
 PROFILE_POINTS = 4  # values of each trading parameter a band is scanned at, the best point's among them
 BAND_HALF_WIDTH = 2.0 / LIMIT_SCAN  # the rounds' points lie two scan steps either side of a band
 VALLEY_STEPS = 4  # the intervals' samples divide each segment of a band's valley in this many
+FINE = 8  # a band's minimum is found again at 1/FINE of a scan step within a step either side
+VALLEY_OFFSETS = np.linspace(-1.0, 1.0, 9)  # the valley's samples across the band, in scan steps
 
 
 def is_band(scan_losses, k: int) -> bool:
@@ -70,8 +73,10 @@ class Band:
         each curve, the path through the optimum and the profile's minima in the order of
         their trading parameter, each segment at VALLEY_STEPS - 1 points between its ends
         and at the minima, each of those on the band and one scan step either side of it
-        (the band is a few scan steps wide, and the path between two minima cuts across
-        it where it bends). The intervals sample them: the trade-off, where the region's
+        (the band can be narrower than a scan step, and the path between two minima cuts
+        across it where it bends: on the saturated-Ua target the truth's loss was 10.0 and
+        the samples a scan step from its band 31, so they lie a quarter step apart,
+        VALLEY_OFFSETS). The intervals sample them: the trade-off, where the region's
         walk from the optimum leaves the narrow valley (`fitting._uncertainty`)."""
         start = np.asarray(unit_point, np.float64)
         out = []
@@ -84,10 +89,10 @@ class Band:
         if not out:
             return np.empty((0, len(start)))
         points = np.concatenate(out)
-        steps = np.repeat(points, 3, axis=0)
-        steps[:, self.limit] += np.tile([-1.0, 0.0, 1.0], len(points)) / LIMIT_SCAN
-        steps[:, self.limit] = np.clip(steps[:, self.limit], 1e-4, 1 - 1e-4)
-        return steps
+        across = np.repeat(points, len(VALLEY_OFFSETS), axis=0)
+        across[:, self.limit] += np.tile(VALLEY_OFFSETS, len(points)) / LIMIT_SCAN
+        across[:, self.limit] = np.clip(across[:, self.limit], 1e-4, 1 - 1e-4)
+        return across
 
     def place(self, units, offsets) -> np.ndarray:
         """`units` with the limit's coordinate put on the band, `offsets` (in [-1, 1]) times
@@ -121,6 +126,31 @@ def profile_values(centre_value: float) -> np.ndarray:
     return values[np.abs(values - centre_value) >= 0.5 / PROFILE_POINTS]
 
 
+def fine_line(unit_point, i: int) -> np.ndarray:
+    """Copies of a unit point (a scan's minimum), coordinate i moved by every 1/FINE of a
+    scan step up to one step either way, the point itself left out."""
+    offsets = np.arange(-FINE + 1, FINE) / FINE
+    offsets = offsets[offsets != 0] / LIMIT_SCAN
+    line = np.repeat(np.asarray(unit_point, np.float64)[None], len(offsets), axis=0)
+    line[:, i] = np.clip(line[:, i] + offsets, 1e-4, 1 - 1e-4)
+    return line
+
+
+def _band_minimum(evaluate, scan, i: int, evaluations: list):
+    """(the unit point, its loss) of a scan's minimum found again at 1/FINE of a step when
+    the scan's minimum is a band (None when it is not): a band can be narrower than a scan
+    step, its lowest loss between two of the scan's points (module docstring)."""
+    k = int(np.argmin(scan[2]))
+    if not is_band(scan[2], k):
+        return None
+    fine = evaluate(fine_line(scan[0][k], i), move=False)
+    evaluations.append(fine)
+    m = int(np.argmin(fine[2]))
+    if fine[2][m] < scan[2][k]:
+        return np.asarray(fine[0][m], np.float64), float(fine[2][m])
+    return np.asarray(scan[0][k], np.float64), float(scan[2][k])
+
+
 def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
     """Scan each fitted limit (indices `limits`) at the best point so far, and profile each
     band found along the `trading` parameters (module docstring). `evaluate(units, move)` is
@@ -132,12 +162,14 @@ def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
         scan = evaluate(scan_line(best_unit, i), move=False)
         evaluations.append(scan)
         k = int(np.argmin(scan[2]))
-        found = scan[2][k] < best_loss and is_band(scan[2], k)
+        band = _band_minimum(evaluate, scan, i, evaluations) if scan[2][k] < best_loss else None
         if scan[2][k] < best_loss:
             best_unit, best_loss = scan[0][k], float(scan[2][k])
-        if not found:
+        if band is None:
             continue
-        centre = np.asarray(scan[0][k], np.float64)
+        centre = band[0]
+        if band[1] < best_loss:
+            best_unit, best_loss = band
         curves = []
         rec.stage = "profile"
         for j in trading:
@@ -152,8 +184,11 @@ def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
                 m = int(np.argmin(profile[2]))
                 if profile[2][m] < best_loss:
                     best_unit, best_loss = profile[0][m], float(profile[2][m])
-                if is_band(profile[2], m):
-                    knots.append((float(point[j]), float(profile[0][m][i]), np.asarray(profile[0][m], np.float64)))
+                minimum = _band_minimum(evaluate, profile, i, evaluations)
+                if minimum is not None:
+                    knots.append((float(point[j]), float(minimum[0][i]), minimum[0]))
+                    if minimum[1] < best_loss:
+                        best_unit, best_loss = minimum
             if len(knots) >= 2:
                 knots.sort(key=lambda knot: knot[0])
                 curves.append((j, np.array([k[0] for k in knots]), np.array([k[1] for k in knots]),

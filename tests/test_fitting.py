@@ -520,7 +520,7 @@ def test_a_limits_band_is_profiled_along_the_parameter_it_trades_with():
     band lie on it."""
     from types import SimpleNamespace
 
-    from fitting._limits import BAND_HALF_WIDTH, LIMIT_SCAN, PROFILE_POINTS, scan_limits
+    from fitting._limits import BAND_HALF_WIDTH, FINE, LIMIT_SCAN, PROFILE_POINTS, VALLEY_OFFSETS, scan_limits
 
     def true_band(u_ratio):
         return 0.3 + 0.4 * u_ratio
@@ -534,8 +534,10 @@ def test_a_limits_band_is_profiled_along_the_parameter_it_trades_with():
     start = np.array([0.8, 0.5])
     evaluations, bands = scan_limits(evaluate, start, float(evaluate(start[None], False)[2][0]), [1], [0],
                                      SimpleNamespace(stage=None))
-    assert len(evaluations) == 1 + 1 + (PROFILE_POINTS - 1)  # the scan, the moved starts, three profiles
+    # the scan and its band's fine scan, the moved starts, three profiles and their fine scans
+    assert len(evaluations) == 2 + 1 + 2 * (PROFILE_POINTS - 1)
     (band,) = bands
+    assert abs(band.centre[1] - true_band(0.8)) < 1.0 / (FINE * LIMIT_SCAN)  # a fraction of a scan step
     u_ratio = np.linspace(0.1, 0.9, 9)
     grid = np.stack([u_ratio, np.zeros_like(u_ratio)], axis=1)
     assert np.abs(band.at(grid) - true_band(u_ratio)).max() < 1.0 / LIMIT_SCAN
@@ -547,9 +549,10 @@ def test_a_limits_band_is_profiled_along_the_parameter_it_trades_with():
     # the intervals' samples along the valley: from the optimum through every profile
     # minimum, on the band (the middle of each three) and a scan step either side of it
     valley = band.valley(np.array([0.8, true_band(0.8)]))
-    on_band = valley[1::3]
-    assert np.abs(on_band[:, 1] - true_band(on_band[:, 0])).max() < 1.0 / LIMIT_SCAN
-    assert np.allclose(valley[0::3, 1] + 1.0 / LIMIT_SCAN, on_band[:, 1])
+    middle = len(VALLEY_OFFSETS) // 2
+    on_band = valley[middle::len(VALLEY_OFFSETS)]
+    assert np.abs(on_band[:, 1] - true_band(on_band[:, 0])).max() < 1.0 / (FINE * LIMIT_SCAN)
+    assert np.allclose(valley[0::len(VALLEY_OFFSETS), 1] + 1.0 / LIMIT_SCAN, on_band[:, 1])
     assert on_band[:, 0].min() < 0.2 and on_band[:, 0].max() >= 0.8
     single, _ = scan_limits(evaluate, start, 1e9, [1], [], SimpleNamespace(stage=None))
     assert np.concatenate([e[0] for e in single])[:, 0].min() == 0.8  # without a trading parameter: one scan
