@@ -92,6 +92,57 @@ def test_patched_neighbour_lists_keep_their_rule():
     assert 0 < int(lists.builds) < 10, "patches, and a full build for the crowd of iteration 30"
 
 
+def test_uniform_draws_the_bits_of_jax_random():
+    """The rules' draws (`_evaluate.uniform`, Threefry unrolled) are `jax.random.uniform`'s
+    bit for bit, traced or not, in [0, 1) and [-1, 1)."""
+    from morphojax.cells._evaluate import uniform
+
+    for seed in range(3):
+        key = jax.random.fold_in(jax.random.key(seed), 11)
+        for n in (1, 7, 1000):
+            for low, high in ((0.0, 1.0), (-1.0, 1.0)):
+                want = np.asarray(jax.jit(lambda k: jax.random.uniform(k, (n,), minval=low, maxval=high))(key))
+                for got in (uniform(key, n, low, high), jax.jit(lambda k: uniform(k, n, low, high))(key)):
+                    assert np.array_equal(np.asarray(got).view(np.uint32), want.view(np.uint32))
+
+
+def test_first_hits_are_the_first_true_columns():
+    """A patch's rows (`_first_hits`, a partial sort): each row's first `slots` True
+    columns in order, then the row length; overflow when a row has more."""
+    from morphojax.cells._neighbours import _first_hits
+
+    rng = np.random.default_rng(2)
+    for density, slots, n in ((0.01, 6, 300), (0.05, 6, 300), (0.0, 3, 300), (0.5, 6, 4)):
+        hit = rng.random((9, n)) < density
+        index, overflow = _first_hits(jnp.asarray(hit), slots)
+        want = np.full((9, slots), n)
+        for r, row in enumerate(hit):
+            found = np.flatnonzero(row)[:slots]
+            want[r, :len(found)] = found
+        assert np.array_equal(np.asarray(index), want)
+        assert bool(overflow) == bool((hit.sum(axis=1) > slots).any())
+
+
+def test_patch_sizes_change_no_bit(monkeypatch):
+    """How many branches the patch has (each sized for up to so many movers) changes only
+    how much work an iteration does, not its cells: a growing run gives the same bits with
+    one branch of 64 movers and with branches of 4 to 64."""
+    import morphojax.cells._simulate as simulate
+
+    cells = mc.cell_grid((10, 12), ("U", "V"), lattice="hex", concentration=(4.0, 4.0), spread=(0.0, 1.0),
+                         diffusion=(0.4, 0.01), upper=(4.05, None), capacity=300, key=jax.random.key(0))
+    rules = (mc.Rule(mc.React(mj.Bard(alpha=16.0, beta=12.0, sp=1.0), ("U", "V"), scale=0.1)),
+             mc.Rule(mc.Divide(0.0, math.pi), when=mc.Chance(2e-3)))
+    outs = []
+    for sizes in ((4, 8, 16, 32, 64), (64,)):
+        monkeypatch.setattr(simulate, "PATCH_SIZES", sizes)
+        outs.append(mc.simulate_cells(None, cells, 400, 0.1, rules=rules, key=jax.random.key(1), domain="packed",
+                                      division_limit=6))
+    assert int(outs[0].count) > 130
+    for field in ("position", "concentration", "polarity", "birth"):
+        assert np.array_equal(np.asarray(getattr(outs[0], field)), np.asarray(getattr(outs[1], field))), field
+
+
 def test_patched_lists_give_the_statistics_of_rebuilt_ones(monkeypatch):
     """Patching the neighbour list where cells moved or were born, instead of rebuilding it
     (what the simulator did before), puts the same pairs in other slots: only the order of

@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 from ._contacts import Contacts
@@ -59,7 +60,7 @@ def _holds(condition, value, key: Array, capacity: int) -> Array:
         x = value(condition.value)
         return jnp.broadcast_to((x >= value(condition.low)) & (x <= value(condition.high)), (capacity,))
     assert isinstance(condition, Chance)
-    return jax.random.uniform(key, (capacity,)) < value(condition.probability)
+    return uniform(key, capacity) < value(condition.probability)
 
 
 def _gradient(cells: Cells, touch: Contacts, name: str) -> Array:
@@ -96,7 +97,34 @@ def apply_rules(rules: tuple[Rule, ...], cells: Cells, touch: Contacts, iteratio
 
 
 def _uniform(key, shape, amplitude):
-    return amplitude * jax.random.uniform(key, shape, minval=-1.0, maxval=1.0)
+    return amplitude * uniform(key, shape[0], -1.0, 1.0)
+
+
+try:  # the 20 rounds of Threefry as plain array operations (jax's own, unrolled)
+    from jax._src.random.threefry2x32 import _threefry2x32_lowering as _threefry_rounds
+except ImportError:  # another jax: its own uniform
+    _threefry_rounds = None
+
+
+def uniform(key: Array, n: int, low: float = 0.0, high: float = 1.0) -> Array:
+    """`jax.random.uniform(key, (n,), float32, low, high)`, the same bits, cheaper on a CPU.
+
+    XLA's CPU lowering of Threefry rolls its 20 rounds into a loop of 5 trips, each a few
+    small kernels; for the thousands of draws a cell rule makes every iteration that loop
+    costs several times the arithmetic. Here the rounds are unrolled into one fusion (jax's
+    GPU lowering, the same function). Keys other than Threefry's, the non-partitionable
+    bit scheme or a jax without that function take `jax.random.uniform` itself;
+    `tests/test_cells.py::test_uniform_draws_the_bits_of_jax_random` holds them equal."""
+    if (_threefry_rounds is None or not jax.config.jax_threefry_partitionable
+            or str(jax.random.key_impl(key)) != "threefry2x32"):
+        return jax.random.uniform(key, (n,), minval=low, maxval=high)
+    k = jax.random.key_data(key)
+    count = jnp.arange(n, dtype=jnp.uint32)  # the low word of the iota; the high word is 0 (n < 2**32)
+    bits1, bits2 = _threefry_rounds(k[0], k[1], jnp.zeros_like(count), count, use_rolled_loops=False)
+    bits = (bits1 ^ bits2) >> np.uint32(32 - 23) | np.uint32(0x3F800000)  # a float in [1, 2)
+    floats = jax.lax.bitcast_convert_type(bits, jnp.float32) - jnp.float32(1.0)
+    low32, high32 = jnp.float32(low), jnp.float32(high)
+    return jnp.maximum(low32, floats * (high32 - low32) + low32)
 
 
 def _act(action, fx: _Effects, mask: Array, value, cells: Cells, touch: Contacts, dt, key, maps) -> _Effects:
