@@ -136,14 +136,17 @@ def fine_line(unit_point, i: int) -> np.ndarray:
     return line
 
 
-def _band_minimum(evaluate, scan, i: int, evaluations: list):
+def _band_minimum(evaluate, scan, i: int, evaluations: list, rec):
     """(the unit point, its loss) of a scan's minimum found again at 1/FINE of a step when
     the scan's minimum is a band (None when it is not): a band can be narrower than a scan
-    step, its lowest loss between two of the scan's points (module docstring)."""
+    step, its lowest loss between two of the scan's points (module docstring). The fine
+    scan's evaluations are recorded as the stage "band"."""
     k = int(np.argmin(scan[2]))
     if not is_band(scan[2], k):
         return None
+    stage, rec.stage = rec.stage, "band"
     fine = evaluate(fine_line(scan[0][k], i), move=False)
+    rec.stage = stage
     evaluations.append(fine)
     m = int(np.argmin(fine[2]))
     if fine[2][m] < scan[2][k]:
@@ -162,7 +165,7 @@ def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
         scan = evaluate(scan_line(best_unit, i), move=False)
         evaluations.append(scan)
         k = int(np.argmin(scan[2]))
-        band = _band_minimum(evaluate, scan, i, evaluations) if scan[2][k] < best_loss else None
+        band = _band_minimum(evaluate, scan, i, evaluations, rec) if scan[2][k] < best_loss else None
         if scan[2][k] < best_loss:
             best_unit, best_loss = scan[0][k], float(scan[2][k])
         if band is None:
@@ -184,7 +187,7 @@ def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
                 m = int(np.argmin(profile[2]))
                 if profile[2][m] < best_loss:
                     best_unit, best_loss = profile[0][m], float(profile[2][m])
-                minimum = _band_minimum(evaluate, profile, i, evaluations)
+                minimum = _band_minimum(evaluate, profile, i, evaluations, rec)
                 if minimum is not None:
                     knots.append((float(point[j]), float(minimum[0][i]), minimum[0]))
                     if minimum[1] < best_loss:
