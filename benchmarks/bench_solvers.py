@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import re
 import sys
 import time
@@ -120,17 +121,18 @@ FIG4_SHAPES = ((50, 50), (150, 150))  # the preset's lattice, and one with ~10x 
 
 
 def _time_simulate(model, state, steps, dt, domain, solver):
-    """(compile seconds, run seconds, final state) of `simulate`: two calls, the second compiled."""
+    """(compile seconds, run seconds, final state, run CPU seconds) of `simulate`: two calls,
+    the second compiled; its CPU time counts all of this process's threads."""
     import jax
     import morphojax as mj
     kw = dict(domain=domain, solver=solver, throw=False, check_dt=False)
     t0 = time.perf_counter()
     jax.block_until_ready(mj.simulate(model, state, steps, dt, **kw).fields)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     out = mj.simulate(model, state, steps, dt, **kw)
     jax.block_until_ready(out.fields)
-    t2 = time.perf_counter()
-    return max(0.0, (t1 - t0) - (t2 - t1)), t2 - t1, out
+    t2, c2 = time.perf_counter(), time.process_time()
+    return max(0.0, (t1 - t0) - (t2 - t1)), t2 - t1, out, c2 - c1
 
 
 def fig4_worker():
@@ -141,14 +143,16 @@ def fig4_worker():
     out = {}
     for shape in FIG4_SHAPES:
         state = mj.paper_state(jax.random.key(0), shape)
-        c, r, final = _time_simulate(phase.model, state, phase.steps, phase.dt, phase.domain, mj.Euler())
+        c, r, final, cpu = _time_simulate(phase.model, state, phase.steps, phase.dt, phase.domain, mj.Euler())
         ref = mj.describe(np.asarray(final.fields[1]))
         tag = f"{shape[0]}x{shape[1]}"
-        out[f"{tag} Euler"] = {"dt": phase.dt, "compile": c, "run": r, "desc": ref.as_dict(), "same": True}
+        out[f"{tag} Euler"] = {"dt": phase.dt, "compile": c, "run": r, "cpu": cpu, "desc": ref.as_dict(),
+                               "same": True}
         for name, dt in FIG4_CANDIDATES:
-            c, r, final = _time_simulate(phase.model, state, round(t_end / dt), dt, phase.domain, solvers()[name])
+            c, r, final, cpu = _time_simulate(phase.model, state, round(t_end / dt), dt, phase.domain, solvers()[name])
             d = mj.describe(np.asarray(final.fields[1]))
-            out[f"{tag} {name} dt {dt:g}"] = {"dt": dt, "compile": c, "run": r, "desc": d.as_dict(),
+            out[f"{tag} {name} dt {dt:g}"] = {"dt": dt, "compile": c, "run": r, "cpu": cpu,
+                                              "desc": d.as_dict(),
                                     "same": same_pattern(ref, d)[0], "why": same_pattern(ref, d)[1]}
     print(json.dumps(out))
 
@@ -160,17 +164,24 @@ def fig4(repeats):
         euler = median([r[key.split()[0] + " Euler"]["run"] for r in runs])
         run_t = median([r[key]["run"] for r in runs])
         comp = median([r[key]["compile"] for r in runs])
+        euler_cpu = median([r[key.split()[0] + " Euler"]["cpu"] for r in runs])
+        cpu = median([r[key]["cpu"] for r in runs])
         d = runs[0][key]["desc"]
         rows.append([key, f"{runs[0][key]['dt']:.3g}", f"{run_t:.3f}", f"{comp:.2f}", f"{euler / run_t:.1f}x",
-                     f"{d['wavelength']:.2f}", d["pattern"], d["spots"],
+                     f"{cpu:.3f}", f"{euler_cpu / cpu:.1f}x", f"{d['wavelength']:.2f}", d["pattern"], d["spots"],
                      "yes" if all(r[key]["same"] for r in runs) else f"no: {runs[0][key].get('why', '')}"])
     table = markdown_table(["lattice, solver", "dt", "run s (median)", "compile s", "speed-up vs Euler",
-                            "wavelength", "class", "spots", "same pattern"], rows)
+                            "CPU s (median)", "in CPU time", "wavelength", "class", "spots", "same pattern"], rows)
+    load = os.getloadavg()
     return ("Time to solution: fig4-r40", "`fig4-r40`'s model (Turing r = 40, s = 3, wrap, nine-point) from "
             "`paper_state(key(0))` to t = 100: on the preset's 50x50 lattice and on 150x150. Euler at the "
             "preset's dt 0.003 (its limit is 0.003125). `simulate` timed directly (the second of two calls; "
             f"compilation = first minus second), medians over {repeats} processes, {machine()}. Descriptors "
-            f"of species b from the first process.\n\n{table}")
+            "of species b from the first process. The speed-up is the ratio of the wall-clock medians; the CPU "
+            "columns are the same second call's CPU time (all of the process's threads), which other work on "
+            "a shared machine inflates less (load average "
+            f"{load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} over 1 / 5 / 15 minutes when the last process ended)."
+            f"\n\n{table}")
 
 
 # ---- every preset ----------------------------------------------------------------------------------
