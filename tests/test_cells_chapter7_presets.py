@@ -22,6 +22,7 @@ from morphojax.presets._cells_chapter7 import (
     cubic_roots,
     fig7_11_text,
     fig7_12_text,
+    reversing,
     saturation,
     spots,
 )
@@ -67,6 +68,12 @@ def test_spots_are_counted_across_the_torus():
     found = spots(cells)
     assert found["spots"] == 3
     assert found["size_cv"] == pytest.approx(np.std([4, 2, 8]) / np.mean([4, 2, 8]), abs=1e-3)
+
+
+def test_reversing_counts_cells_that_oscillate_not_those_that_drift():
+    t = np.arange(11)[:, None]
+    series = np.hstack([np.sin(t), 0.3 * t, np.sin(t) * 0.01, np.minimum(t, 4) * 0.5])  # cells as columns
+    assert reversing(series) == 0.25  # only the first: the second drifts, the third is too small, the fourth stops
 
 
 def test_fig7_9_reads_the_plot_from_the_model():

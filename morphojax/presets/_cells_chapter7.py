@@ -26,12 +26,18 @@ the four). The summary measures what the figure shows, per panel (`spots`): the 
 (connected regions of cells with V below half its range; on the torus), their count and
 the spread of their sizes (coefficient of variation: the heterogeneity), V's mean, and
 how much the pattern still moves, the mean |dV| per cell over the last 500 iterations
-(`moving`), and the spots at the perturbation's start (`start`). With seed 0
+(`moving`), the fraction of the cells that oscillate over them (`reversing`: V turning
+from rising to falling or back at least twice in eleven snapshots 50 apart), and the
+spots at the perturbation's start (`start`). With seed 0
 (benchmarks/results/gallery_cells_measured.md): 114 spots at 2000; at 4000 (a) 114 with
 sizes spread 0.19 and moving 0.002 (settled), (b) 111, 0.12 (reinforcement raises the
 background to a mean V of 6.1 and evens the spots: not the heterogeneity the text
 reports), (c) 111, 0.22, (d) 121, 0.16 and moving 0.023: consumption keeps the spots
-changing, as the text says of (d).
+changing, but by drifting and splitting; no cell oscillates in any panel (`reversing` 0,
+also with consumption 0.015 and 0.02, tried). The text's oscillating spots of (d) are not
+reproduced, though a sink p puts the homogeneous state past a Hopf point: it shifts beta
+to beta + p / s, and Turk's reaction's trace s (u - 1 - v) turns positive at v = 3.53,
+p = 0.0094 here; the spots themselves stay stationary.
 
 `quick` runs a 30 x 30 grid, perturbed from 300 until 600 (the spots have just formed).
 
@@ -142,6 +148,16 @@ def spots(cells, reagent: str = "V", reach: float = 2.5) -> dict:
     return {"spots": len(sizes), "size_cv": round(spread, 3), "mean": round(float(value.mean()), 3)}
 
 
+def reversing(series, step: float = 0.05) -> float:
+    """The fraction of the cells whose value goes up and down again, or down and up again,
+    at least twice along `series` (times x cells), counting only changes over `step`
+    between snapshots: cells that oscillate rather than drift."""
+    d = np.diff(np.asarray(series, np.float64), axis=0)
+    big = np.abs(d) > step
+    turns = (np.sign(d[1:]) != np.sign(d[:-1])) & big[1:] & big[:-1]
+    return round(float(np.mean(turns.sum(0) >= 2)), 4)
+
+
 @dataclasses.dataclass(frozen=True)
 class Fig7_11Preset(CellPreset):
     """Fig. 7.11's four panels, each its own listing (`listing_of`); `load` gives panel
@@ -158,21 +174,23 @@ class Fig7_11Preset(CellPreset):
 def _run_fig7_11(item: Fig7_11Preset, seed: int, quick: bool, out: Path) -> dict:
     size = FIG7_11_QUICK if quick else FIG7_11_SIZE
     window = min(MOVING_WINDOW, (size["stop"] - size["start"]) // 2)
-    shots = (size["start"], size["stop"] - window, size["stop"])
+    late = tuple(range(size["stop"] - window, size["stop"] + 1, window // 10))  # eleven, `window` / 10 apart
+    shots = (size["start"], *late)
     t0 = time.perf_counter()
     runs, measured = {}, {}
     for panel in FIG7_11_PANELS:
         listing = item.listing_of(panel, quick)
         runs[panel] = listing.snapshots(shots, seed=seed, progress=f"Fig. 7.11 ({panel})")
-        late, end = (np.asarray(c.live()["concentration"][0]) for c in runs[panel][1:])
-        measured[panel] = {**spots(runs[panel][-1]), "moving": round(float(np.abs(end - late).mean()), 4),
-                           "start": spots(runs[panel][0])["spots"]}
+        series = np.array([np.asarray(c.live()["concentration"][0]) for c in runs[panel][1:]])
+        measured[panel] = {**spots(runs[panel][-1]), "moving": round(float(np.abs(series[-1] - series[0]).mean()), 4),
+                           "reversing": reversing(series), "start": spots(runs[panel][0])["spots"]}
     seconds = time.perf_counter() - t0
     top = max(float(np.max(r[-1].live()["concentration"][0])) for r in runs.values())
     tiles = [mj.render_cells(r[-1], "V", size=300, style="voronoi", vmin=0.0, vmax=top) for r in runs.values()]
     mj.montage(tiles, len(tiles), col_labels=[FIG7_11_PANELS[p][0] for p in runs],
                title=f"V at iteration {shots[-1]}, perturbed from {shots[0]} (one colour scale, 0 to {top:.1f})").save(out)
     final = runs["d"][-1]
+    shots = (shots[0], shots[-1])  # the cells saved are (d)'s at the end
     meta = {"kind": "cells", "listing": "fig7.11-d", "text": item.load(quick).text, "dt": 1.0,
             "warnings": [], "preset": item.name, "seed": seed, "iterations": list(shots), "quick": quick}
     files = [out, save_cells(out.with_suffix(".npz"), final, meta), write_cells_svg(final, out.with_suffix(".svg"), "V")]
