@@ -81,9 +81,10 @@ class RunStatus(eqx.Module):
         """The status in words (concrete values); with `start`, the state's step when the
         call began, a blow-up is also counted from the call's own first step."""
         if int(self.nonfinite_step) >= 0:
-            where = f"step {int(self.nonfinite_step)}"
+            n = int(self.nonfinite_step)  # the state's step count once that step was taken (1 = the first)
+            where = f"step {n}"
             if start is not None and is_concrete(start):
-                where += f" (step {int(self.nonfinite_step) - int(start) + 1} of this call)"
+                where += f" (step {n - int(start)} of this call)"
             return (f"the state became non-finite (NaN or Inf) at {where}: the run blew up (with an IMEX solver "
                     "off the transforms, a conjugate-gradient solve that did not converge ends the same way). "
                     "Reduce dt, check the parameters, or use throw=False to get the state anyway.")

@@ -142,5 +142,9 @@ def test_a_blow_up_is_counted_from_the_state_and_from_the_call(key):
     state = mj.simulate(mj.Turing(4.0, 3.0), mj.paper_state(key, (10, 10)), 500, 0.01)
     run = mj.run_status(mj.Turing(4.0, 3.0), state, 300, 0.2, check_dt=False)
     bad = int(run.nonfinite_step)
-    with pytest.raises(mj.SimulationError, match=rf"at step {bad} \(step {bad - 500 + 1} of this call\)"):
+    # the call's own count: that many steps from the state it started from make it non-finite
+    before = mj.simulate(mj.Turing(4.0, 3.0), state, bad - 500 - 1, 0.2, check_dt=False, throw=False)
+    at = mj.simulate(mj.Turing(4.0, 3.0), state, bad - 500, 0.2, check_dt=False, throw=False)
+    assert np.isfinite(np.asarray(before.fields)).all() and not np.isfinite(np.asarray(at.fields)).all()
+    with pytest.raises(mj.SimulationError, match=rf"at step {bad} \(step {bad - 500} of this call\)"):
         mj.simulate(mj.Turing(4.0, 3.0), state, 300, 0.2, check_dt=False)
