@@ -24,6 +24,7 @@ instead of in a box around one point that the band leaves as soon as the ratio m
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 
@@ -82,7 +83,7 @@ class Band:
         out = []
         for j, _, _, minima in self.curves:
             path = sorted([start, *minima], key=lambda u: u[j])
-            for a, b in zip(path[:-1], path[1:]):
+            for a, b in itertools.pairwise(path):
                 t = np.arange(1, VALLEY_STEPS)[:, None] / VALLEY_STEPS
                 out.append(a + t * (b - a))
             out.append(np.asarray(minima))

@@ -171,6 +171,15 @@ class Fig7_11Preset(CellPreset):
                                name=f"fig7.11-{panel}")
 
 
+def _register(cls, run, name: str, description: str, figure: str, listing: str) -> None:
+    """Register a preset of class `cls` whose run is `run(preset, seed, quick, out)`."""
+    def build(seed, quick, out, frames):
+        return run(item, seed, quick, out)
+
+    item = cls(name, description, figure, build, listing=listing)
+    register(item)
+
+
 def _run_fig7_11(item: Fig7_11Preset, seed: int, quick: bool, out: Path) -> dict:
     size = FIG7_11_QUICK if quick else FIG7_11_SIZE
     window = min(MOVING_WINDOW, (size["stop"] - size["start"]) // 2)
@@ -198,19 +207,11 @@ def _run_fig7_11(item: Fig7_11Preset, seed: int, quick: bool, out: Path) -> dict
             "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
 
 
-def _fig7_11():
-    def build(seed, quick, out, frames):
-        return _run_fig7_11(item, seed, quick, out)
-
-    item = Fig7_11Preset(
-        "thesis-fig7.11", "a stable spot pattern (Listing 5.1's Turing rule, Du 0.04, on an 80x80 torus of cells) "
-        "perturbed from iteration 2000 by reinforcement, production and consumption of V (the thesis prints no "
-        "listing: rules and rates chosen); the spots' count, size spread and movement measured",
-        "thesis Fig. 7.11 (reconstructed: no listing printed)", build, listing="fig7.11")
-    register(item)
-
-
-_fig7_11()
+_register(Fig7_11Preset, _run_fig7_11,
+          "thesis-fig7.11", "a stable spot pattern (Listing 5.1's Turing rule, Du 0.04, on an 80x80 torus of cells) "
+          "perturbed from iteration 2000 by reinforcement, production and consumption of V (the thesis prints no "
+          "listing: rules and rates chosen); the spots' count, size spread and movement measured",
+          "thesis Fig. 7.11 (reconstructed: no listing printed)", "fig7.11")
 
 
 # ---- Fig. 7.9: eq. 7.1's cubic, its plot and its pattern --------------------------------------
@@ -325,18 +326,11 @@ def _run_fig7_9(item: Fig7_9Preset, seed: int, quick: bool, out: Path) -> dict:
             "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
 
 
-def _fig7_9():
-    def build(seed, quick, out, frames):
-        return _run_fig7_9(item, seed, quick, out)
+_register(Fig7_9Preset, _run_fig7_9,
+          "thesis-fig7.9-cells", "eq. 7.1's cubic reaction (s 0.35, a 0.3, b 0.5, c 0.7): its plot, and the pattern it "
+          "makes on Fig. 7.4's 100x100 grid of cells (R limit 1, conc 0.5 dev 0.5, diff 0.01; 2700 iterations, not "
+          "printed)", "thesis Fig. 7.9 (plot and pattern)", "fig7.9")
 
-    item = Fig7_9Preset(
-        "thesis-fig7.9-cells", "eq. 7.1's cubic reaction (s 0.35, a 0.3, b 0.5, c 0.7): its plot, and the pattern it "
-        "makes on Fig. 7.4's 100x100 grid of cells (R limit 1, conc 0.5 dev 0.5, diff 0.01; 2700 iterations, not "
-        "printed)", "thesis Fig. 7.9 (plot and pattern)", build, listing="fig7.9")
-    register(item)
-
-
-_fig7_9()
 
 # ---- Fig. 7.12: saturation limits on one reagent or both ---------------------------------------
 FIG7_12_TEXT = """define chemical U{limit_u}
@@ -423,18 +417,10 @@ def _run_fig7_12(item: Fig7_12Preset, seed: int, quick: bool, out: Path) -> dict
             "seconds_run": round(seconds, 3), "files": [str(f) for f in files]}
 
 
-def _fig7_12():
-    def build(seed, quick, out, frames):
-        return _run_fig7_12(item, seed, quick, out)
-
-    item = Fig7_12Preset(
-        "thesis-fig7.12", "saturation limits on one reagent or both (none; U at 5.2; V at 5.2; both at 6.3) on one "
-        "Turing rule (Du 0.08, scale 0.02) on an 80x80 torus of cells, 3000 iterations (the thesis prints none of its "
-        "experiments: chosen); the cells at each limit and at 0 measured", "thesis Fig. 7.12 (reconstructed: no "
-        "experiments printed)", build, listing="fig7.12")
-    register(item)
-
-
-_fig7_12()
+_register(Fig7_12Preset, _run_fig7_12,
+          "thesis-fig7.12", "saturation limits on one reagent or both (none; U at 5.2; V at 5.2; both at 6.3) on one "
+          "Turing rule (Du 0.08, scale 0.02) on an 80x80 torus of cells, 3000 iterations (the thesis prints none of its "
+          "experiments: chosen); the cells at each limit and at 0 measured", "thesis Fig. 7.12 (reconstructed: no "
+          "experiments printed)", "fig7.12")
 
 __all__ = ["FIG7_11_PANELS", "FIG7_12_PANELS", "Fig7_9Preset", "Fig7_11Preset", "Fig7_12Preset", "cubic_roots", "fig7_11_text", "fig7_12_text", "saturation", "spots"]
