@@ -94,11 +94,9 @@ def register(subparsers) -> None:
 def _check_before_fitting(args, fixed: dict) -> None:
     """What can be checked before minutes of fitting: the outputs can be written and differ,
     the sizes fit in memory and the step counter, and the fixed values are ones the model takes."""
-    import morphojax as mj
-    from morphojax._checks import STEP_COUNTER_MAX, check_run_size, check_shape
-    from morphojax._files import check_output_path  # private helpers of the core, as `cli` uses them
+    from morphojax._files import check_output_path  # a private helper of the core, as `cli` uses it
 
-    from ._families import FAMILIES
+    from ._pipeline import check_fit_inputs
 
     outputs = [p for p in (args.json, args.preview, args.sample, args.render) if p is not None]
     for path in outputs:
@@ -106,26 +104,7 @@ def _check_before_fitting(args, fixed: dict) -> None:
     resolved = [p.resolve() for p in outputs]
     if len(set(resolved)) != len(resolved):
         raise ValueError(f"two outputs have the same path: {', '.join(str(p) for p in outputs)}")
-    shape = check_shape(args.shape, "--shape", ndim=2)
-    check_run_size(shape, 3, members=max(int(args.seeds), 1),
-                   what=f"this fit ({args.seeds} simulations of {shape[0]}x{shape[1]} cells at once)")
-    for flag, value in (("--steps", args.steps), ("--window", args.window)):
-        if value is not None and not 0 <= value <= STEP_COUNTER_MAX:
-            raise ValueError(f"{flag} must lie in [0, {STEP_COUNTER_MAX}] (got {value})")
-    names = [args.model] if args.model != "auto" else list(FAMILIES)
-    for name in names:  # a fixed value the model refuses is refused now, not after the fit's design
-        family = FAMILIES.get(name)
-        try:
-            model = family.make(tuple(shape)) if family is not None else mj.model_from_name(name)
-        except Exception:  # not a plain model (an experiment, a family built otherwise): fit() checks it
-            continue
-        known = model.parameters() if hasattr(model, "parameters") else {}
-        own = {k: v for k, v in fixed.items() if k in known}
-        if own:
-            try:
-                model.replace(**own)
-            except ValueError as err:
-                raise ValueError(f"--fixed: {err}") from None
+    check_fit_inputs(args.model, args.shape, args.seeds, args.steps, args.window, fixed, flag="--{}")
 
 
 # argparse destination -> `fitting.fit` keyword (the names that differ)

@@ -59,6 +59,40 @@ def _names(fit) -> list | None:
     return list(fit) if not isinstance(fit, str) else [n.strip() for n in fit.split(",") if n.strip()]
 
 
+def check_fit_inputs(model, shape, seeds, steps, window, fixed, flag: str = "{}") -> None:
+    """What can be checked before minutes of fitting, by the API and the command line alike:
+    the lattice's shape, that its simulations fit in memory, steps and window within the step
+    counter, and fixed values the model takes (`flag` formats a parameter's name as the
+    caller spells it: "{}" for `fit`'s keywords, "--{}" for the command line's flags)."""
+    import morphojax as mj
+    from morphojax._checks import STEP_COUNTER_MAX, check_run_size, check_shape
+
+    from ._families import FAMILIES
+
+    shape = check_shape(shape, flag.format("shape"), ndim=2)
+    check_run_size(shape, 3, members=max(int(seeds), 1),
+                   what=f"this fit ({seeds} simulations of {shape[0]}x{shape[1]} cells at once)")
+    for name, value in (("steps", steps), ("window", window)):
+        if value is not None and not 0 <= value <= STEP_COUNTER_MAX:
+            raise ValueError(f"{flag.format(name)} must lie in [0, {STEP_COUNTER_MAX}] (got {value})")
+    if not fixed or not isinstance(model, str):
+        return
+    names = [model] if model != "auto" else list(FAMILIES)
+    for name in names:  # a fixed value the model refuses is refused now, not after the fit's design
+        family = FAMILIES.get(name)
+        try:
+            template = family.make(tuple(shape)) if family is not None else mj.model_from_name(name)
+        except Exception:  # not a plain model (an experiment, a family built otherwise): the fit checks it
+            continue
+        known = template.parameters() if hasattr(template, "parameters") else {}
+        own = {k: v for k, v in fixed.items() if k in known}
+        if own:
+            try:
+                template.replace(**own)
+            except ValueError as err:
+                raise ValueError(f"{flag.format('fixed')}: {err}") from None
+
+
 def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bounds=None, shape=DEFAULTS["shape"],
         steps: int | None = DEFAULTS["steps"], window: int | None = DEFAULTS["window"], seeds: int = DEFAULTS["seeds"],
         design_seeds: int = DEFAULTS["design_seeds"],
@@ -120,6 +154,7 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         `result.save_json(path)`, `result.preview(path)`.
     """
     t_wall = time.perf_counter()
+    check_fit_inputs(model, shape, seeds, steps, window, fixed)
     stats = StatsConfig() if stats is None else stats
     mode = None if progress is False else "bar" if progress or progress_default() else "log"
     if method not in METHODS:

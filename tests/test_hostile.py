@@ -721,6 +721,20 @@ def test_out_folder_and_unwritable_outputs_are_refused_before_the_work(tmp_path,
         assert __import__("re").search(match, capsys.readouterr().err), extra
 
 
+def test_the_fit_api_refuses_what_it_can_check_before_fitting():
+    """`fitting.fit` itself (not only the command line) refuses a fixed value the model
+    refuses, a step count past the step counter and a fractional shape before any
+    simulation: the same checks as `morphojax fit`, each naming the keyword."""
+    import fitting
+
+    target = np.random.default_rng(0).random((32, 32))
+    for kwargs, match in (({"fixed": {"ratio": -3}}, r"^fixed: Turing.ratio .* must lie in \[0, \+inf\)"),
+                          ({"steps": 2**31 + 5}, r"^steps must lie in \[0, 2147483647\]"),
+                          ({"shape": (2.5, 3)}, r"^shape must hold whole numbers")):
+        with pytest.raises(ValueError, match=match):
+            fitting.fit(target, "turing", progress=False, **kwargs)
+
+
 def test_files_get_the_umask_and_killed_writes_are_cleaned(tmp_path):
     from morphojax._files import write_npz
 

@@ -78,7 +78,7 @@ def test_ctrl_c_exits_130_every_time(tmp_path):
                                  "--checkpoint-every", "20000", "--no-progress", "--quiet"],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                 env={**os.environ, "MORPHOJAX_CACHE_DIR": "off"})
-        time.sleep(3.0 + 0.4 * (k % 5))  # some during compilation, some while stepping
+        time.sleep(1.5 + 0.5 * (k % 5))  # some while loading, some compiling, some stepping (a test under 60 s)
         proc.send_signal(signal.SIGINT)
         try:
             _, err = proc.communicate(timeout=60)

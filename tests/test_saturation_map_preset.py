@@ -29,6 +29,9 @@ def test_quick_map_places_the_areas(tmp_path):
     assert regions["over_limit"] == 0 and summary["shape"] == [48, 48]
     with np.load(tmp_path / "m.npz") as data:
         below, constant, limit_u = data["below"], data["constant"], data["limit_u"]
+        meta = __import__("json").loads(str(data["metadata"]))
+    assert meta["morphojax"] == mj.__version__ and meta["format_version"] >= 1  # as every result file
+    assert meta["preset"] == "thesis-fig7.14-regions" and meta["seed"] == 0
     assert limit_u[0, 0] > limit_u[-1, 0]  # L_U falls down the map
     assert below[:12].mean() > 0.8 and below[-12:].mean() < 0.2  # the limit acts at the bottom only
     assert constant[-6:].mean() > 0.5 and constant[:12].mean() < 0.1  # constant under the steady state's U = 4

@@ -33,12 +33,14 @@ map more than of the range.
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
 
 import morphojax as mj
 
+from .._files import write_npz
 from .._render import colormap_table
 from ._registry import AutomatonPreset, lookup, registered
 
@@ -107,9 +109,12 @@ def _fig7_14_regions(seed, quick, out, frames):
     mj.montage([_picture(v, np.zeros_like(below), np.zeros_like(constant), scale), _picture(v, below, constant, scale)],
                2, col_labels=["V", "darkened: U below its limit; blue: constant"],
                title="thesis Fig. 7.14: Du 0 to 0.8 across, L_U 10 (top) to 3 (bottom)").save(out)
-    npz = out.with_suffix(".npz")
-    np.savez_compressed(npz, u=u.astype(np.float32), v=v.astype(np.float32), below=below, constant=constant,
-                        limit_u=limit_u.astype(np.float32), du=du.astype(np.float32))
+    # written whole or not at all, with the version and format number (`write_npz`), as every result file
+    metadata = {"kind": "saturation-map", "preset": "thesis-fig7.14-regions", "seed": seed,
+                "steps": experiment.phases[-1].steps, "experiment": experiment.to_dict()}
+    npz = write_npz(out.with_suffix(".npz"), u=u.astype(np.float32), v=v.astype(np.float32), below=below,
+                    constant=constant, limit_u=limit_u.astype(np.float32), du=du.astype(np.float32),
+                    metadata=json.dumps(metadata))
     regions = {"darkened": round(float(below.mean()), 3), "constant": round(float(constant.mean()), 3),
                "over_limit": int(np.sum(u > limit_u + 1e-4)), "bands": _bands(u, limit_u, below, constant, du)}
     return {"steps": experiment.phases[-1].steps, "shape": list(u.shape), "regions": regions,
