@@ -6,10 +6,10 @@ target made near the limit that just lets the pattern form has a basin a few hun
 the bounds wide along it (the bounded-Ua target: the loss is lowest within about 0.2 of the
 true Ua; fit_synthetic.md), which neither the design nor a gradient finds. So each fitted
 limit is scanned across its bounds at the best point so far (`LIMIT_SCAN` points
-1/LIMIT_SCAN of the bounds apart), and where its minimum is a band, found again at 1/FINE
-of a scan step around it.
+1/LIMIT_SCAN of the bounds apart).
 
-Where the scan's minimum is a narrow band (`is_band`), the band moves with the parameters
+Where the scan's minimum is a narrow band (`is_band`), it can be narrower than a scan step,
+so its minimum is found again at 1/FINE of a step around it. And the band moves with the parameters
 that trade against the limit: on the saturated-Ua target (true ratio 20, Ua 4.4) the
 band lies at Ua 4.18 at ratio 27 and at 4.4 at ratio 20, and a fit that scanned only at the
 design's best point (ratio 27) ended in the wrong band at twice the truth's loss
@@ -18,7 +18,8 @@ each trading parameter (every fitted parameter but the limits, the family's leng
 stripes' angle), each point first moved to the target's wavelength along the length: a
 profile of the band. The band's curve through the profile's minima (`Band.at`) is where
 the refinement rounds put their points along the limit, two scan steps either side of it,
-instead of in a box around one point that the band leaves as soon as the ratio moves.
+instead of in a box around one point that the band leaves as soon as the ratio moves; and
+the intervals sample its valley (`Band.valley`, `fitting._uncertainty`).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ def is_band(scan_losses, k: int) -> bool:
 class Band:
     """A limit's band: where along the limit (unit coordinate) the loss is lowest, as a
     function of the trading parameters. `centre` is the unit point of the first scan's
-    minimum; `curves` one (parameter index, its values, the band's place at each, the unit
+    minimum (found again at 1/FINE of a step); `curves` one (parameter index, its values, the band's place at each, the unit
     points of those minima) per trading parameter whose profile found the band at two
     values or more, the centre's among them."""
 
@@ -73,11 +74,11 @@ class Band:
         """Unit points along the band's valley through `unit_point` (a fit's optimum): for
         each curve, the path through the optimum and the profile's minima in the order of
         their trading parameter, each segment at VALLEY_STEPS - 1 points between its ends
-        and at the minima, each of those on the band and one scan step either side of it
-        (the band can be narrower than a scan step, and the path between two minima cuts
-        across it where it bends: on the saturated-Ua target the truth's loss was 10.0 and
-        the samples a scan step from its band 31, so they lie a quarter step apart,
-        VALLEY_OFFSETS). The intervals sample them: the trade-off, where the region's
+        and at the minima, each of those moved along the limit by VALLEY_OFFSETS: up to a
+        scan step either side, a quarter step apart (the band can be narrower than a scan
+        step, and the path between two minima cuts across it where it bends: on the
+        saturated-Ua target the truth's loss was 10.0 and samples a scan step from its band
+        31). The intervals sample them: the trade-off, where the region's
         walk from the optimum leaves the narrow valley (`fitting._uncertainty`)."""
         start = np.asarray(unit_point, np.float64)
         out = []

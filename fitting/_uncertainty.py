@@ -43,8 +43,9 @@ above the 9.7 that one degree per group allowed. Each parameter's interval spans
 interval and every accepted point: a projection of the joint region, so conservative.
 
 A saturation limit's band is narrower than any step of the walk, and it bends as the ratio
-moves (`fitting._limits`): the saturated-Ua target's fit sat at ratio 33.9, Ua 4.03 at a
-loss below the truth's (ratio 20, Ua 4.4), and the region around it gave the ratio 30.9-34.2.
+moves (`fitting._limits`): a fit of the saturated-Ua target sat at ratio 33.9, Ua 4.03 (loss
+14.9; the truth, ratio 20, Ua 4.4, scored 10.0 with the same seeds), and the region around
+it gave the ratio 30.9-34.2.
 Where the fit's global stage profiled such a band, points along its valley (the path from
 the optimum through the profile's minima, `Band.valley`) are accepted into the region too:
 samples along the trade-off, which no box around the optimum reaches.
