@@ -719,6 +719,10 @@ def test_out_folder_and_unwritable_outputs_are_refused_before_the_work(tmp_path,
                          (["--preview", "afile/p.png"], "afile is a file")):
         assert main(fit + extra) == 2, extra
         assert __import__("re").search(match, capsys.readouterr().err), extra
+    for gif, match in (("afile/y.gif", "afile is a file"), ("y.png", "--gif must end in one of .gif, .mp4")):
+        assert main(["run", "fig4-r6", "--quick", "--out", "r.png", "--gif", gif]) == 2, gif  # before the run
+        assert match in capsys.readouterr().err, gif
+        assert not (tmp_path / "r.npz").exists(), gif
 
 
 def test_the_fit_api_refuses_what_it_can_check_before_fitting():

@@ -136,7 +136,22 @@ def _cmd_run(args):
         for exp in [_experiment(mj.PRESETS[m], args) for m in item.members] or [_experiment(item, args)]:
             check_experiment_size(exp, args.scale, args.frames or args.gif is not None)
     out = picture_path(args.out if args.out is not None else Path("out") / f"{args.name}.png", args.name)
+    check_animation_path(args)
     return RUNNERS[item.kind](item, args, out)
+
+
+def check_animation_path(args) -> None:
+    """`--gif`, checked before the run as every output is: its suffix (so it can be neither
+    the run's picture nor its npz) and its folder (ValueError naming the flag)."""
+    gif = getattr(args, "gif", None)
+    if gif is None:
+        return
+    from morphojax._animation import FORMATS
+    from morphojax._files import check_output_path
+
+    if gif.suffix.lower() not in FORMATS:
+        raise ValueError(f"--gif must end in one of {', '.join(FORMATS)} (got {gif.name!r})")
+    check_output_path(gif)
 
 
 def _experiment(item, args):
@@ -338,6 +353,7 @@ def _cmd_resume(args):
     if int(run.get("phase", 0)) >= len(exp.phases):
         print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
     out = picture_path(args.out if args.out is not None else args.checkpoint, args.checkpoint.stem)
+    check_animation_path(args)
     args.seed = int(run["seed"]) if run.get("seed") is not None else 0  # a key-started run resumes with its key
     result = _run_one(exp, args, out.with_suffix(".npz"), resume=(state, meta))
     _write_outputs(result, out, args)
