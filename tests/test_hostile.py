@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import time
 import zipfile
 from pathlib import Path
 
@@ -723,6 +724,20 @@ def test_out_folder_and_unwritable_outputs_are_refused_before_the_work(tmp_path,
         assert main(["run", "fig4-r6", "--quick", "--out", "r.png", "--gif", gif]) == 2, gif  # before the run
         assert match in capsys.readouterr().err, gif
         assert not (tmp_path / "r.npz").exists(), gif
+
+
+def test_cell_constructors_refuse_sizes_beyond_memory_before_allocating():
+    """A grid, a disc or a capacity past the memory limit is a ValueError saying how much it
+    needs, at once (before: a raw MemoryError, after 83 s for `cell_disc(1e9)`)."""
+    import morphojax.cells as mc
+
+    for build in (lambda: mc.cell_grid((100_000, 100_000), ["u"]), lambda: mc.cell_disc(1e9, ["u"]),
+                  lambda: mc.cell_disc(float("inf"), ["u"]), lambda: mc.cells_at([[0.0, 0.0]], ["u"], capacity=10**10)):
+        t0 = time.perf_counter()
+        with pytest.raises(ValueError, match=r"needs about .* GB; the limit is"):
+            build()
+        assert time.perf_counter() - t0 < 5
+    assert int(mc.cell_grid((6, 5), ["u", "v"]).count) == 30  # ordinary sizes build as before
 
 
 def test_the_fit_api_refuses_what_it_can_check_before_fitting():

@@ -21,7 +21,7 @@ import numpy as np
 
 from .._checks import check_choice, check_range
 from ..models import AbstractModel
-from ._state import Cells, make_cells
+from ._state import Cells, check_cell_count, make_cells
 
 LATTICES = ("square", "hex")
 SPACING = 2.0  # cell diameter: unit-radius cells just touch
@@ -32,6 +32,7 @@ def grid_positions(shape, lattice: str = "square", spacing: float = SPACING, at=
     rows, cols = _shape(shape)
     check_choice(lattice, "lattice", LATTICES)
     check_range(spacing, "spacing", low=0.0, low_open=True)
+    check_cell_count(rows * cols, f"a grid of {rows}x{cols} cells")
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     if lattice == "square":
         x, y = c * spacing, r * spacing
@@ -47,6 +48,9 @@ def disc_positions(radius: float, lattice: str = "square", spacing: float = SPAC
     check_range(radius, "radius", low=0.0)
     check_choice(lattice, "lattice", LATTICES)
     pitch = spacing if lattice == "square" else spacing * math.sqrt(3) / 2
+    # the grid around the disc is built first: refuse its size before it is (an infinite radius too)
+    check_cell_count((2 * float(radius) / pitch + 3) * (2 * float(radius) / spacing + 5),
+                     f"a disc of radius {radius} cell radii")
     half_rows = int(radius // pitch) + 1
     half_cols = int(radius // spacing) + 2
     rows, cols = 2 * half_rows + 1, 2 * half_cols + 1

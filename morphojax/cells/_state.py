@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .._checks import default_float
+from .._checks import check_memory, default_float
 from ._neighbours import NeighbourList
 from ._space import check_period, wrap_positions
 
@@ -179,6 +179,17 @@ class Cells(eqx.Module):
         return eqx.tree_at(lambda c: [getattr(c, k) for k in names], self, [changes[k] for k in names])
 
 
+# Bytes a cell costs while it is built and stepped, per reagent and generously: its buffers
+# in float64 as NumPy builds them, the device's float32 copies, and its neighbour-list rows
+CELL_BYTES = 512
+
+
+def check_cell_count(cells, what: str) -> None:
+    """Refuse, before anything is allocated, `cells` cell-reagents that would need more
+    memory than `memory_limit()` (ValueError saying how much, `check_memory`)."""
+    check_memory(float(cells) * CELL_BYTES, what)
+
+
 def make_cells(
     species: Sequence[str],
     position,
@@ -216,6 +227,7 @@ def make_cells(
     if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < max(n, 1):
         raise ValueError(f"capacity must be an integer >= the number of cells ({max(n, 1)}) (got {capacity!r})")
     s = len(species)
+    check_cell_count(int(capacity) * max(s, 1), f"a capacity of {capacity} cells of {s} reagents")
 
     def per_cell(values, name, default):
         arr = np.asarray(default if values is None else values, dtype=float)
