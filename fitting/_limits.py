@@ -52,13 +52,13 @@ def is_band(scan_losses, k: int) -> bool:
 class Band:
     """A limit's band: where along the limit (unit coordinate) the loss is lowest, as a
     function of the trading parameters. `centre` is the unit point of the first scan's
-    minimum (found again at 1/FINE of a step); `curves` one (parameter index, its values, the band's place at each, the unit
-    points of those minima) per trading parameter whose profile found the band at two
-    values or more, the centre's among them."""
+    minimum (found again at 1/FINE of a step); `curves` one (parameter index, the unit
+    points of the band's minima in the order of that parameter) per trading parameter
+    whose profile found the band at two values or more, the centre among them."""
 
     limit: int
     centre: np.ndarray
-    curves: tuple = ()  # (j, values, places, unit points of the minima) per trading parameter
+    curves: tuple = ()  # (j, the minima's unit points, ordered by coordinate j) per trading parameter
 
     def at(self, units) -> np.ndarray:
         """The band's place along the limit at each unit point: the centre's, moved by each
@@ -66,7 +66,8 @@ class Band:
         segments continued beyond the profile's ends)."""
         units = np.atleast_2d(units)
         place = np.full(len(units), float(self.centre[self.limit]))
-        for j, values, places, _ in self.curves:
+        for j, minima in self.curves:
+            values, places = minima[:, j], minima[:, self.limit]
             place += _linear(units[:, j], values, places) - _linear(self.centre[j], values, places)
         return place
 
@@ -82,7 +83,7 @@ class Band:
         walk from the optimum leaves the narrow valley (`fitting._uncertainty`)."""
         start = np.asarray(unit_point, np.float64)
         out = []
-        for j, _, _, minima in self.curves:
+        for j, minima in self.curves:
             path = sorted([start, *minima], key=lambda u: u[j])
             for a, b in itertools.pairwise(path):
                 t = np.arange(1, VALLEY_STEPS)[:, None] / VALLEY_STEPS
@@ -182,7 +183,7 @@ def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
             starts[:, j] = profile_values(centre[j])
             moved = evaluate(starts, move=True)  # the other values, at the target's wavelength
             evaluations.append(moved)
-            knots = [(centre[j], centre[i], centre)]
+            knots = [centre]  # the band's minima along j (a profile moves only j, a scan only i)
             for point in moved[0]:
                 profile = evaluate(scan_line(point, i), move=False)
                 evaluations.append(profile)
@@ -191,12 +192,11 @@ def scan_limits(evaluate, best_unit, best_loss: float, limits, trading, rec):
                     best_unit, best_loss = profile[0][m], float(profile[2][m])
                 minimum = _band_minimum(evaluate, profile, i, evaluations, rec)
                 if minimum is not None:
-                    knots.append((float(point[j]), float(minimum[0][i]), minimum[0]))
+                    knots.append(minimum[0])
                     if minimum[1] < best_loss:
                         best_unit, best_loss = minimum
             if len(knots) >= 2:
-                knots.sort(key=lambda knot: knot[0])
-                curves.append((j, np.array([k[0] for k in knots]), np.array([k[1] for k in knots]),
-                               np.stack([k[2] for k in knots])))
+                minima = np.stack(knots)
+                curves.append((j, minima[np.argsort(minima[:, j], kind="stable")]))
         bands.append(Band(i, centre, tuple(curves)))
     return evaluations, bands
