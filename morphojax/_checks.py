@@ -92,8 +92,8 @@ def check_range(value, name: str, *, low=None, high=None, low_open=False, high_o
     if high is not None:
         ok &= (arr < high) if high_open else (arr <= high)
     if not ok.all():
-        lo = "-inf" if low is None else f"{low:g}"
-        hi = "+inf" if high is None else f"{high:g}"
+        lo = "-inf" if low is None else _number(low)
+        hi = "+inf" if high is None else _number(high)
         interval = f"{'(' if low_open or low is None else '['}{lo}, {hi}{')' if high_open or high is None else ']'}"
         raise ValueError(f"{name} must lie in {interval} (got {_show(arr)})")
 
@@ -112,10 +112,17 @@ def check_choice(value, name: str, allowed) -> None:
         raise ValueError(f"unknown {name} {value!r}; allowed: {options}")
 
 
+def _number(x) -> str:
+    """A bound or value as it was given: whole numbers in full (2147483653, not 2.14748e+09)."""
+    if isinstance(x, (int, np.integer)) or (isinstance(x, float) and x.is_integer() and abs(x) < 1e15):
+        return str(int(x))
+    return f"{x:g}"
+
+
 def _show(arr) -> str:
     arr = np.asarray(arr)
     if arr.size == 1:
-        return f"{arr.reshape(()).item():g}"
+        return _number(arr.reshape(()).item())
     return f"array of shape {arr.shape}, min {np.nanmin(arr):g}, max {np.nanmax(arr):g}" if np.isfinite(arr).any() else f"array of shape {arr.shape}"
 
 

@@ -317,6 +317,26 @@ class Result:
         return describe(shown, wrap=exp.phases[-1].boundary == "wrap")
 
 
+def check_progress(experiment: Experiment, meta: dict) -> None:
+    """Refuse a checkpoint of `experiment` whose step disagrees with where its run says it
+    stands. Every phase takes exactly its `steps` unless it stops at a steady state or steps
+    adaptively, so up to the first such phase the state's step is the steps of the phases
+    done plus `phase_step`: a checkpoint claiming more phases done than its state ran
+    (a tampered `phase`) is refused here instead of being written out as the final result."""
+    run, step = meta.get("run") or {}, meta.get("step")
+    if step is None:
+        return
+    phase, phase_step = int(run.get("phase", 0)), int(run.get("phase_step", 0))
+    done = experiment.phases[:phase + 1] if phase < len(experiment.phases) else experiment.phases
+    if any(p.until is not None or getattr(p.solver, "adaptive", False) for p in done):
+        return
+    expected = sum(p.steps for p in experiment.phases[:phase]) + phase_step
+    if int(step) != expected:
+        raise ValueError(f"run fields 'phase' ({phase}) and 'phase_step' ({phase_step}) put this checkpoint at step "
+                         f"{expected} of its experiment, but metadata field 'step' is {step}: the file disagrees "
+                         "with itself")
+
+
 def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: bool = False,
                    progress: bool = False, checkpoint_path=None, checkpoint_every: int | None = None, resume=None,
                    stop_after: int | None = None, grad_window: int | None = None, throw: bool = True) -> Result:
@@ -357,6 +377,7 @@ def run_experiment(experiment: Experiment, seed: int = 0, *, key=None, frames: b
                 f"({saved.get('name')!r}, or the same one with other parameters) than {experiment.name!r}; "
                 "resume it with mj.load_experiment(meta), as `morphojax resume` does"
             )
+        check_progress(experiment, meta)
         run = meta.get("run", {})
         seed = int(run["seed"]) if run.get("seed") is not None else seed
         key = key_from_data(run.get("key")) if key is None else key

@@ -89,6 +89,9 @@ def photo_stops(source, crop=None, k: int = 3, pigment: str = "dark", seed: int 
         rgb = np.asarray(source)
         if rgb.ndim != 3 or rgb.shape[2] != 3:
             raise ValueError(f"Gradient.from_photo: an array must be (h, w, 3) RGB (got shape {rgb.shape})")
+        if rgb.dtype.kind not in "fiu" or not np.all(np.isfinite(rgb)):
+            raise ValueError("Gradient.from_photo: an array's colours must be finite real numbers (it holds NaN, "
+                             "infinite or complex values)")
         img = Image.fromarray(np.clip(rgb * (255.0 if rgb.dtype.kind == "f" else 1.0), 0, 255).astype(np.uint8))
     if crop is not None:
         x0, y0, x1, y1 = (int(v) for v in crop)

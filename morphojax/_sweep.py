@@ -41,7 +41,7 @@ from ._growth import Growth
 from ._initial import initial_state
 from .models import AbstractModel
 from ._bounds import bounds_policy
-from ._checks import check_shape, check_step_counter
+from ._checks import check_finite, check_range, check_shape, check_step_counter
 from .solvers import Euler, SteadyState, as_solver, until_to_dict
 from ._serialise import bounds_to_data, growth_to_dict, key_to_data, model_to_dict, source_to_dict
 from ._files import to_jsonable
@@ -103,6 +103,8 @@ def sweep(model: AbstractModel, vary, state: State | None = None, steps: int = 0
         raise ValueError(f"sweep: steps must be a non-negative integer (got {steps!r})")
     if dt is None:
         raise ValueError("sweep: dt is required (see max_stable_dt for the largest stable value)")
+    check_finite(dt, "sweep.dt")
+    check_range(dt, "sweep.dt", low=0.0, low_open=True)
     if growth is not None and not isinstance(growth, Growth):
         raise ValueError(f"sweep: growth must be a Growth (got {type(growth).__name__})")
     if keys not in ("per-member", "shared"):
@@ -249,8 +251,8 @@ def _validate_members(model, growth, dt, values, names, probe, steps, lattice, c
         vals = {k: float(values[k][i]) for k in names}
         try:
             m, g, dt_i = member_model(model, growth, dt, vals)
-            if DT in vals and not dt_i > 0:
-                raise ValueError(f"dt must be > 0 (got {dt_i:g})")
+            if DT in vals and not (np.isfinite(dt_i) and dt_i > 0):
+                raise ValueError(f"dt must be a finite number > 0 (got {dt_i:g})")
             if check_dt:
                 lattice.check_dt(dt_i, m.max_diffusion())
             if g is not None:

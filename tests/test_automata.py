@@ -572,6 +572,6 @@ def test_ca_command_3d(tmp_path, capsys):
                          (["--dim", "4"], r"--dim must be 2 or 3"),
                          (["--size", "0"], r"--size \(cells per side\) must lie in \[1, \+inf\)")):
         args = parser.parse_args(["ca", *bad, "--out", str(tmp_path / "bad.png")])
-        with pytest.raises(SystemExit, match=message):  # before any run: nothing written
+        with pytest.raises(ValueError, match=message):  # before any run: nothing written (main: exit 2)
             args.func(args)
     assert not (tmp_path / "bad.png").exists()

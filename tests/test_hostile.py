@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 import time
 import zipfile
 from pathlib import Path
@@ -168,8 +169,8 @@ def test_cli_sizes_refused_before_anything_runs(capsys, small_limit):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "Traceback" not in err
         assert __import__("re").search(match, err), (argv, err)
-    with pytest.raises(SystemExit, match=r"this automaton \(3000\^3 cells"):
-        main(["ca", "--dim", "3", "--size", "3000"])
+    assert main(["ca", "--dim", "3", "--size", "3000"]) == 2  # bad input: 2, as every command
+    assert re.search(r"morphojax ca: error: this automaton \(3000\^3 cells", capsys.readouterr().err)
 
 
 # ---- 3. one kind of error from every loader -------------------------------------------------
@@ -269,6 +270,35 @@ def test_meshes_keep_numbering_and_refuse_nan(tmp_path):
     (tmp_path / "lie.off").write_text("OFF\n100000000 1 0\n0 0 0\n")
     with pytest.raises(ValueError, match="declares 100000000 vertices"):
         mj.Mesh.from_file(tmp_path / "lie.off")
+
+
+def test_nan_vertices_nan_pixels_and_large_images_are_refused(tmp_path, monkeypatch):
+    """NaN or infinite coordinates in OFF and PLY files, NaN pixels in an array target or
+    palette, and an image whose header size passes the memory limit: each a ValueError
+    naming what is wrong, before anything is decoded or fitted."""
+    from PIL import Image
+
+    fitting = pytest.importorskip("fitting")
+    faces = "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
+    (tmp_path / "nan.off").write_text("OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\nnan 0 1\n" + faces)
+    (tmp_path / "inf.ply").write_text("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                                      "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                                      "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 inf\n" + faces)
+    for name in ("nan.off", "inf.ply"):
+        with pytest.raises(ValueError, match=rf"{name}: .*NaN or infinite"):
+            mj.Mesh.from_file(tmp_path / name)
+    grey = np.random.default_rng(0).random((40, 40))
+    grey[3, 3] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        fitting.load_target(grey, cell_pixels=1.0)
+    with pytest.raises(ValueError, match="Gradient.from_photo: .*NaN"):
+        mj.Gradient.from_photo(np.stack([grey] * 3, -1))
+    Image.fromarray(np.zeros((300, 400), np.uint8)).save(tmp_path / "big.png")
+    monkeypatch.setenv("MORPHOJAX_MAX_MEMORY", "1M")
+    with pytest.raises(ValueError, match=r"the 400x300 image .*big.png needs about 3.84 MB; the limit is 1.05 MB"):
+        fitting.load_target(tmp_path / "big.png", cell_pixels=1.0)
+    with pytest.raises(ValueError, match=r"Gradient.from_photo: the 400x300 image .* the limit is 1.05 MB"):
+        mj.Gradient.from_photo(tmp_path / "big.png")
 
 
 @FEW
@@ -512,6 +542,27 @@ def test_resume_of_phase_99_is_refused(tmp_path, capsys):
     assert "'phase'" in capsys.readouterr().err
 
 
+def test_a_checkpoint_claiming_more_steps_than_it_ran_is_refused(tmp_path, capsys):
+    """A checkpoint's `phase` and `phase_step` place it at a step of its experiment; a file
+    claiming completion (or a later point) at another step is refused, not written out."""
+    from morphojax.cli import main
+
+    phases = mj.preset("fig4-r4.2", quick=True).phases
+    done = _result_file(tmp_path / "done.npz", {"run.phase": len(phases), "step": 10})
+    stale = tmp_path / ".done.99999999-kill.npz"  # left by a killed write (no such process)
+    stale.write_bytes(b"half an archive")
+    assert main(["resume", str(done)]) == 2
+    assert not stale.exists()  # removed by the resume, although it wrote nothing
+    err = capsys.readouterr().err
+    assert f"step {sum(p.steps for p in phases)} of its experiment" in err and "'step' is 10" in err
+    assert "already complete" not in err and not (tmp_path / "done.png").exists()
+    late = _result_file(tmp_path / "late.npz", {"run.phase_step": 7, "run.phase_origin": 0, "step": 7})
+    state, meta = load_npz(late)
+    meta["run"]["phase_step"] = 5  # the state ran 7 steps of phase 1
+    with pytest.raises(ValueError, match=r"'phase' \(0\) and 'phase_step' \(5\) put this checkpoint at step 5"):
+        mj.run_experiment(mj.load_experiment(meta), resume=(state, meta))
+
+
 def test_newer_files_warn_naming_both_versions(tmp_path):
     path = _result_file(tmp_path / "new.npz", {"morphojax": "99.0.0"}, experiment=False)
     with pytest.warns(UserWarning, match=rf"morphojax 99.0.0, newer than this morphojax {mj.__version__}"):
@@ -519,6 +570,81 @@ def test_newer_files_warn_naming_both_versions(tmp_path):
     path = _result_file(tmp_path / "fmt.npz", {"format_version": FORMAT_VERSION + 1}, experiment=False)
     with pytest.warns(UserWarning, match="file format 2"):
         load_npz(path)
+
+
+def _preset_file(path: Path, kind: str, meta_changes=None, array_changes=None) -> Path:
+    """A file as the automaton, Potts or solid presets write it (small, made here, not run),
+    with `meta_changes` applied to its JSON and `array_changes` to its arrays."""
+    from morphojax._files import write_npz
+
+    rng = np.random.default_rng(1)
+    if kind == "automaton":
+        arrays = {"cells": rng.integers(0, 3, (2, 9, 10)).astype(np.int8)}
+        meta = {"automaton": "YoungCA", "params": [{"species": [{}, {}]}] * 2, "lattice": [9, 10], "seed": 3,
+                "steps": 12}
+    elif kind == "potts":
+        arrays = {"ids": rng.integers(0, 5, (2, 9, 10)).astype(np.int32), "types": np.array([0, 1, 1, 2, 2]),
+                  "j_like": np.array([3.0, 15.0])}
+        meta = {"kind": "potts", "j_like": [3.0, 15.0], "lattice": [9, 10], "seed": 3, "mcs": 40}
+    else:
+        arrays = {"u": rng.random((6, 7, 8)), "v": rng.random((6, 7, 8))}
+        meta = {"kind": "solid", "lattice": [6, 7, 8], "steps": 20, "dt": 1.0, "seed": 3}
+    meta.update(meta_changes or {})
+    arrays.update(array_changes or {})
+    return write_npz(path, metadata=np.asarray(json.dumps(meta)), **arrays)
+
+
+def _load_preset_file(kind, path):
+    from morphojax.presets._preset_files import load_automaton, load_potts, load_solid
+
+    return {"automaton": load_automaton, "potts": load_potts, "solid": load_solid}[kind](path)
+
+
+@pytest.mark.parametrize("kind", ["automaton", "potts", "solid"])
+def test_preset_files_round_trip_and_render(tmp_path, kind):
+    """Each kind reads back what was written (arrays, metadata with version and format) and
+    `morphojax render` draws it."""
+    from morphojax.cli import main
+
+    path = _preset_file(tmp_path / f"{kind}.npz", kind)
+    *arrays, meta = _load_preset_file(kind, path)
+    with np.load(path) as data:
+        np.testing.assert_array_equal(arrays[0], data[{"automaton": "cells", "potts": "ids", "solid": "v"}[kind]])
+    assert meta["lattice"] == list(arrays[0].shape[-len(meta["lattice"]):]) and meta["seed"] == 3
+    assert meta["morphojax"] == mj.__version__ and meta["format_version"] == FORMAT_VERSION
+    assert main(["render", str(path), "--out", str(tmp_path / f"{kind}.png"), "--quiet"]) == 0
+
+
+@pytest.mark.parametrize("kind, meta_changes, array_changes, field", [
+    ("automaton", {"lattice": [9, 11]}, None, "'lattice'"),
+    ("automaton", {"lattice": [0, 10]}, None, "'lattice'"),
+    ("automaton", {"steps": -4}, None, "'steps'"),
+    ("automaton", {"seed": "one"}, None, "'seed'"),
+    ("automaton", {"automaton": "Rule110"}, None, "'automaton'"),
+    ("automaton", {"params": [{"rates": 1}]}, None, "'params'"),
+    ("automaton", None, {"cells": np.full((9, 10), -1, np.int8)}, "state -1|states -1"),
+    ("automaton", None, {"cells": np.zeros((9, 10), np.float32)}, "whole numbers"),
+    ("potts", {"j_like": [3.0]}, None, "'j_like'"),
+    ("potts", {"j_like": [3.0, 16.0]}, None, "'j_like'"),
+    ("potts", {"mcs": 2.5}, None, "'mcs'"),
+    ("potts", {"lattice": [10, 9]}, None, "'lattice'"),
+    ("potts", None, {"types": np.array([0, 1])}, "do not index"),
+    ("solid", {"lattice": [6, 7, 9]}, None, "'lattice'"),
+    ("solid", {"dt": 0}, None, "'dt'"),
+    ("solid", {"steps": True}, None, "'steps'"),
+    ("solid", None, {"u": np.zeros((6, 7))}, "field 'u'"),
+    ("solid", None, {"v": np.full((6, 7, 8), np.nan)}, "field 'v'"),
+])
+def test_tampered_preset_files_are_refused_by_name(tmp_path, capsys, kind, meta_changes, array_changes, field):
+    """A tampered field is refused by every reader, the API's and `render`'s, naming the file
+    and the field, and nothing is drawn."""
+    from morphojax.cli import main
+
+    path = _preset_file(tmp_path / "t.npz", kind, meta_changes, array_changes)
+    with pytest.raises(ValueError, match=rf"t\.npz is not a morphojax .* file \(.*({field})"):
+        _load_preset_file(kind, path)
+    assert main(["render", str(path), "--out", str(tmp_path / "t.png")]) == 2
+    assert re.search(field, capsys.readouterr().err) and not (tmp_path / "t.png").exists()
 
 
 def test_cells_files_are_checked(tmp_path):
@@ -836,6 +962,23 @@ def test_python_sweep_member_count_and_steps_are_checked_against_the_counters(mo
         mj.sweep(mj.Turing(), {"ratio": [4.0, 5.0]}, shape=(4, 4), key=0, dt=0.01, steps=2**31 + 5)
     with pytest.raises(ValueError, match=r"sweep: shape must hold whole numbers, not 16.5"):
         mj.sweep(mj.Turing(), {"ratio": [4.0, 5.0]}, shape=(16.5, 16), key=0, dt=0.01)
+    for dt, match in ((float("nan"), "sweep.dt must not be NaN"), (-0.01, r"sweep.dt must lie in \(0, \+inf\)")):
+        with pytest.raises(ValueError, match=match):  # before any member runs
+            mj.sweep(mj.Turing(), {"ratio": [4.0, 5.0]}, shape=(4, 4), key=0, dt=dt, steps=1)
+
+
+def test_cli_numbers_are_refused_up_front_and_bounds_read_in_full(tmp_path, capsys):
+    """`sweep --dt nan` is refused before the sweep (it used to run, then fail formatting the
+    table) and a step count past the counter shows its bound in full, not as 2.14748e+09."""
+    from morphojax.cli import main
+
+    sweep = ["sweep", "--model", "turing", "--vary", "ratio=4,5", "--shape", "8", "8", "--steps", "1", "--no-progress",
+             "--out", str(tmp_path / "s.png")]
+    for dt in ("nan", "inf", "0"):
+        assert main(sweep + ["--dt", dt]) == 2
+        assert f"--dt must be a finite number > 0 (got {float(dt)})" in capsys.readouterr().err
+    assert main(["ca", "--steps", "2147483653", "--out", str(tmp_path / "c.png")]) == 2
+    assert "--steps must lie in [0, 2147483647] (got 2147483653)" in capsys.readouterr().err
 
 
 def test_python_sweep_states_and_parameter_maps_are_sized_before_the_run(monkeypatch):

@@ -56,13 +56,6 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run_ca_command(args) -> int:
-    try:
-        return _run_ca(args)
-    except ValueError as err:  # bad parameters: a message, not a traceback
-        raise SystemExit(f"morphojax ca: {err}") from err
-
-
-def _run_ca(args) -> int:
     if args.dim not in (2, 3):  # the library takes any dimension; pictures and meshes need 2 or 3
         raise ValueError(f"--dim must be 2 or 3 (got {args.dim})")
     check_range(args.size, "--size (cells per side)", low=1)

@@ -33,8 +33,11 @@ from PIL import Image
 import morphojax as mj
 from morphojax.presets import lookup
 from morphojax.presets._automaton_outputs import default_scale, lattice_picture
+from morphojax.presets._preset_files import load_automaton, load_solid
 
 from morphojax._checks import check_picture, check_run_size, check_scale  # sizes checked before a run
+from morphojax._experiment import check_progress  # a checkpoint's step against its phases
+from morphojax._files import remove_stale_temporaries
 
 from ._output import out_arg, picture_path, report
 
@@ -343,12 +346,14 @@ def _descriptors(result) -> dict:
 # ---- resume and render -----------------------------------------------------------------------
 def _cmd_resume(args):
     check_scale(args.scale, "--scale")
+    remove_stale_temporaries(args.checkpoint)  # what a killed write of it left, even if nothing is written now
     state, meta = mj.load_npz(args.checkpoint)
     if "experiment" not in meta:
         raise ValueError(f"{args.checkpoint} holds no experiment to resume (a result of `simulate`, not of "
                          "`morphojax run`)")
     exp = mj.load_experiment(meta)
     check_experiment_size(exp, args.scale, args.frames or args.gif is not None)
+    check_progress(exp, meta)
     run = meta.get("run", {})
     if int(run.get("phase", 0)) >= len(exp.phases):
         print(f"{args.checkpoint} is already complete ({len(exp.phases)} phases done)", file=sys.stderr)
@@ -398,8 +403,8 @@ def _render(args):
     if kind == "solid":
         from morphojax.presets._solids import slices_picture
 
-        with np.load(args.result) as data:
-            slices_picture(np.asarray(data[args.species or "v"]), args.cmap or "viridis").save(out)
+        field, _ = load_solid(args.result, args.species or "v")
+        slices_picture(field, args.cmap or "viridis").save(out)
         return 0
     if kind == "cells":
         cells, _ = mj.load_cells(args.result)
@@ -456,14 +461,7 @@ def file_kind(path: Path) -> str:
 
 def automaton_picture(path: Path, scale: int | None):
     """An automaton's saved cells as `morphojax ca` draws them (3D: slices)."""
-    import numpy as np
-
-    from morphojax._files import open_npz, read_metadata
-
-    with open_npz(path, "automaton") as data:
-        cells, meta = np.asarray(data["cells"]), read_metadata(data, path)
-        if cells.ndim not in (2, 3) or not np.issubdtype(cells.dtype, np.integer):
-            raise ValueError(f"its cells are {cells.ndim}D {cells.dtype}; an automaton's are 2D or 3D integers")
+    cells, meta = load_automaton(path)
     scale = default_scale(cells.shape) if scale is None else scale
     check_picture(cells.shape if cells.ndim == 2 else (8,) + cells.shape[1:], scale, f"the picture of {path}")
     if meta.get("automaton") == "LifeLike":

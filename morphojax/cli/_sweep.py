@@ -155,6 +155,8 @@ def build_sweep(args):
             dt = float(f"{DT_SAFETY * limit:.3g}")
     else:
         dt = args.dt
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"--dt must be a finite number > 0 (got {dt})")
         if DT in vary:
             raise ValueError("give either --dt or --vary dt=..., not both")
     if args.steps is not None and args.time is not None:

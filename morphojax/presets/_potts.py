@@ -99,17 +99,13 @@ register(PottsPreset("potts-fig11", "cellular Potts model at like-type J = 3 and
 def potts_picture(path: Path, scale: int | None = None):
     """A saved Potts run (`morphojax render`): its lattice, or a montage of a series."""
     from .._checks import check_picture
-    from .._files import open_npz, read_metadata
+    from ._preset_files import load_potts
 
-    with open_npz(path, "Potts") as data:
-        ids, types, meta = np.asarray(data["ids"]), np.asarray(data["types"]), read_metadata(data, path)
-        scale = (3 if ids.ndim == 3 and ids.shape[0] > 4 else 4) if scale is None else scale
-        if ids.ndim not in (2, 3) or not np.issubdtype(ids.dtype, np.integer) or types.ndim != 1 \
-                or (ids.size and not 0 <= ids.min() <= ids.max() < len(types)):
-            raise ValueError(f"its ids ({ids.ndim}D {ids.dtype}) do not index its {len(types)} cell types")
-        stack = ids if ids.ndim == 3 else ids[None]
-        check_picture(stack.shape, scale, f"the picture of {path}")
-        tiles = [mj.potts_image(mj.PottsState(i, types), scale) for i in stack]
+    ids, types, meta = load_potts(path)
+    scale = (3 if ids.ndim == 3 and ids.shape[0] > 4 else 4) if scale is None else scale
+    stack = ids if ids.ndim == 3 else ids[None]
+    check_picture(stack.shape, scale, f"the picture of {path}")
+    tiles = [mj.potts_image(mj.PottsState(i, types), scale) for i in stack]
     if len(tiles) == 1:
         return tiles[0]
     j = meta.get("j_like") or [None] * len(tiles)
