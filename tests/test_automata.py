@@ -75,6 +75,41 @@ def test_step_matches_oracle_exactly(case, method):
         np.testing.assert_array_equal(got, oracle.young_step(cells, species, neighbourhood, include_self))
 
 
+# disc weights at or below 0 (allowed while w_act > w_inh): paper 003's Appendix B2 panels
+# wi = 1.00 and 1.05 at wa = 1 (its code's boxes, self counted), a 2D disc beside an
+# ordinary species, a 3D box
+LOW_DISC_CASES = [
+    ((17, 16), [(2.0, 5.0, 0.0, -1.0)], "box", True),
+    ((17, 16), [(2.0, 5.0, -0.05, -1.05)], "box", True),
+    ((16, 18), [(2.0, 5.0, -0.3, -0.5), (1.0, 3.0, 1.0, -0.2)], "disc", False),
+    ((11, 12, 11), [(1.0, 3.0, 0.0, -0.2)], "box", False),
+]
+
+
+@pytest.mark.parametrize("method", ["direct", "fft", "matmul"])
+@pytest.mark.parametrize("case", range(len(LOW_DISC_CASES)))
+def test_disc_weights_at_or_below_zero_match_oracle(case, method):
+    shape, species, neighbourhood, include_self = LOW_DISC_CASES[case]
+    ca = YoungCA(species, neighbourhood, include_self, method=method)
+    assert ca._plan(shape).method == method
+    k = len(species)
+    for seed in (0, 1):
+        cells = _state(shape, k, seed)
+        if k == 1:  # sparse starts, as the paper's p = 0.015, leave rings empty
+            cells = np.where(np.random.default_rng(seed + 7).random(shape) < 0.03, 0, 1).astype(np.int8)
+        got = np.asarray(ca.step(cells))
+        np.testing.assert_array_equal(got, oracle.young_step(cells, species, neighbourhood, include_self))
+        # a species whose disc weighs <= 0 never gains a cell
+        for j, sp in enumerate(species):
+            if sp[2] <= 0:
+                assert not ((got == j) & (cells != j)).any()
+    if k == 1:  # one differentiated cell alone: its field is w_act (self counted) or 0
+        lone = np.ones(shape, np.int8)
+        lone[(3,) * len(shape)] = 0
+        kept = np.asarray(ca.step(lone))[(3,) * len(shape)] == 0
+        assert kept == (species[0][2] == 0 or not include_self)
+
+
 @pytest.mark.parametrize("keys", [True, False])
 def test_species_ties_go_to_the_lowest_index(keys):
     """Two identical species tie wherever both fields are equal; the first wins (as the
@@ -409,7 +444,8 @@ def test_jit_with_traced_radii_and_no_retrace():
         (lambda: YoungCA([(3.0, 2.0, 1.0, -0.2)]), r"YoungCA\.r_inh.*\[r_act, \+inf\).*species 0"),
         (lambda: YoungCA([(2.0, 6.0, 1.0, 0.2)]), r"YoungCA\.w_inh.*\(-inf, 0\)"),
         (lambda: YoungCA([(2.0, 6.0, 1.0, 0.0)]), r"YoungCA\.w_inh.*\(-inf, 0\)"),
-        (lambda: YoungCA([(2.0, 6.0, 0.0, -0.2)]), r"YoungCA\.w_act.*\(0, \+inf\)"),
+        (lambda: YoungCA([(2.0, 6.0, -0.2, -0.2)]), r"YoungCA\.w_act.*> w_inh.*species 0 has w_act -0\.2 <= w_inh -0\.2"),
+        (lambda: YoungCA([(2.0, 6.0, 1.0, -0.2), (2.0, 6.0, -0.5, -0.3)]), r"YoungCA\.w_act.*species 1 has w_act -0\.5"),
         (lambda: YoungCA([(2.0, 6.0, 1.0, -0.2)], neighbourhood="hex"), r"YoungCA\.neighbourhood.*'disc', 'box'"),
         (lambda: YoungCA([(2.0, 6.0, 1.0)]), r"YoungCA\.species\[0\].*\(r_act, r_inh, w_act, w_inh\)"),
         (lambda: YoungCA([]), r"YoungCA\.species needs at least one"),

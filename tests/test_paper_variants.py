@@ -39,12 +39,22 @@ def test_young_b2_is_paper_003s_code_for_every_weight(tmp_path):
     summary = mj.PRESETS["young-b2"].run(seed=2, quick=True, out=tmp_path / "b2.png")
     with np.load(tmp_path / "b2.npz") as data:
         finals, meta = data["cells"], json.loads(str(data["metadata"]))
-    assert meta["wi"][0] == 0.95 and meta["wi"][-1] == 0.10 and len(meta["wi"]) == 18 == len(summary["runs"])
+    # the appendix's 20 panels, 1.05 (upper left) to 0.10 in steps of 0.05
+    assert meta["wi"] == [round(1.05 - 0.05 * i, 2) for i in range(20)] and len(summary["runs"]) == 20
     start = 1 - np.asarray(mj.random_cells(jax.random.key(2), (100, 100), 1, mj.YOUNG_P))  # the code's 1 = active
     for wi, final in zip(meta["wi"], finals):
         np.testing.assert_array_equal(1 - final, paper_003_code(start, 20, 1.0, wi), err_msg=f"wi = {wi}")
     active = [r["volume_fractions"][0] for r in summary["runs"]]
-    assert active[0] < 0.1 and active[-1] > 0.9  # spots at a strong inhibitor, nearly all on at a weak one
+    assert active[2] < 0.1 and active[-1] > 0.9  # spots at a strong inhibitor, nearly all on at a weak one
+    # wi >= wa: WS = Na (wa - wi) - (Ni - Na) wi is never > 0. At 1.05 every cell with an active
+    # cell in its 11 x 11 box (itself included) turns off: all off after one step. At 1.00 only
+    # the start's cells with no other active cell in their ring (the 11 x 11 box less the
+    # 5 x 5) stay, and nothing turns on
+    assert not (1 - finals[0]).any()
+    box = lambda r: sum(np.roll(start, (dy, dx), (0, 1)) for dy in range(-r, r + 1) for dx in range(-r, r + 1))
+    alone = start * (box(5) - box(2) == 0)
+    assert 0 < alone.sum() < start.sum()
+    np.testing.assert_array_equal(1 - finals[1], alone)
 
 
 def test_young_neighbourhoods_differ_only_in_the_shape(tmp_path):

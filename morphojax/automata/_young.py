@@ -4,8 +4,10 @@ Cells hold an integer state: 0 .. K-1 are the K differentiated species and K is 
 undifferentiated state (for Young's original K = 1: 0 = differentiated, 1 = not; note
 that this is the reverse of the 0/1 coding in the Python code of Tinson 2022, use
 `1 - cells` to convert). Species j has an activator neighbourhood of radius r_act[j]
-with weight w_act[j] > 0 and an inhibitor ring r_act[j] < d <= r_inh[j] with weight
-w_inh[j] < 0. Its net field at a cell is
+with weight w_act[j] and an inhibitor ring r_act[j] < d <= r_inh[j] with weight
+w_inh[j] < 0, the activator counting for more than the ring: w_act[j] > w_inh[j]
+(usually w_act[j] > 0; see `YoungCA` for the weights <= 0 Tinson's code gives). Its net
+field at a cell is
 
     W_j = w_act[j] * (# cells of species j in the activator disc)
         + w_inh[j] * (# cells of species j in the inhibitor ring)
@@ -88,13 +90,21 @@ class YoungCA(AbstractAutomaton):
         cells = random_cells(jax.random.key(0), (30, 30, 30), k=1, p=None)
         out = ca.run(cells, 100, stop_at_convergence=True)   # out.cells, out.steps
 
-    Radii are in lattice cells; weights are the net activation (> 0) and inhibition (< 0)
-    field of one differentiated cell. `neighbourhood` is "disc" (Euclidean, Dur 2023),
-    "box" (Young's square boxes as in Tinson's (2022) code, Moore's neighbourhood) or "diamond"
-    (von Neumann's, Tinson's (2022) Fig. 1 (b)); `include_self` counts the cell
-    itself in its activator disc. Tinson's (2022) code, which sums the inhibitor over the
-    whole box (self included) and writes WS = Na wa - Ni wi, is
+    Radii are in lattice cells; weights are the net field of one differentiated cell in the
+    activator disc (w_act) and in the inhibitor ring (w_inh < 0). `neighbourhood` is "disc"
+    (Euclidean, Dur 2023), "box" (Young's square boxes as in Tinson's (2022) code, Moore's
+    neighbourhood) or "diamond" (von Neumann's, Tinson's (2022) Fig. 1 (b)); `include_self`
+    counts the cell itself in its activator disc. Tinson's (2022) code, which sums the
+    inhibitor over the whole box (self included) and writes WS = Na wa - Ni wi, is
     `YoungCA([(Ra, Ri, wa - wi, -wi)], "box", include_self=True)`.
+
+    The rule on the weights is the code's wa > 0 and wi > 0: w_inh < 0 and w_act > w_inh
+    (the disc counts for more than the ring). w_act itself may be 0 or negative: Tinson's
+    Appendix B2 runs wi = 1.00 and 1.05 at wa = 1, a disc weight of 0 and -0.05. A species
+    with w_act <= 0 has no field > 0 anywhere, so it never wins a cell: with one species,
+    a cell with a differentiated cell in its ring (with w_act < 0: anywhere in its disc or ring)
+    becomes undifferentiated and every other cell keeps its state. w_act <= w_inh (the
+    code's wa <= 0: no activation at all) is refused.
 
     The radii and weights are float array leaves of shape (K,), so a model can be
     vmapped over (stack several models, or build it inside vmap with an explicit
@@ -166,8 +176,16 @@ class YoungCA(AbstractAutomaton):
             if is_concrete(v) and not np.isfinite(np.asarray(v)).all():
                 raise ValueError(f"YoungCA.{name} must be finite (got {np.asarray(v)})")
         check_range(self.r_act, "YoungCA.r_act (activator radius, lattice cells)", low=0.0)
-        check_range(self.w_act, "YoungCA.w_act (activator weight)", low=0.0, low_open=True)
         check_range(self.w_inh, "YoungCA.w_inh (inhibitor weight)", high=0.0, high_open=True)
+        if is_concrete(self.w_act, self.w_inh):
+            wa, wi = np.asarray(self.w_act), np.asarray(self.w_inh)
+            if (wa <= wi).any():
+                j = int(np.argmax(wa <= wi))
+                raise ValueError(
+                    f"YoungCA.w_act (activator weight) must be > w_inh for every species (the activator disc "
+                    f"counts for more than the ring; Tinson's wa = w_act - w_inh > 0); species {j} has w_act "
+                    f"{wa[j]:g} <= w_inh {wi[j]:g}"
+                )
         if is_concrete(self.r_act, self.r_inh):
             ra, ri = np.asarray(self.r_act), np.asarray(self.r_inh)
             if (ri < ra).any():

@@ -124,20 +124,20 @@ def _young_series(cas, labels, columns, title, extra, seed, out, size, steps):
 
 
 B2_WI = tuple(round(1.05 - 0.05 * i, 2) for i in range(20))  # 1.05 (upper left) to 0.10 (bottom right)
-B2_RUN = tuple(w for w in B2_WI if w < 1.0)  # YoungCA's activator weight wa - wi must be > 0
 
 
-@_automaton("young-b2", "Tinson's (2022) Python code with its inhibitor weight wi from 0.95 to 0.10 (Moore "
-            "boxes Ra = 2, Ri = 5, wa = 1, self counted, 20 steps): small spots, larger spots, stripes, inverted spots, all on",
+@_automaton("young-b2", "Tinson's (2022) Python code with its inhibitor weight wi from 1.05 to 0.10 (Moore "
+            "boxes Ra = 2, Ri = 5, wa = 1, self counted, 20 steps): all off, isolated clusters, small spots, larger "
+            "spots, stripes, inverted spots, all on",
             "Tinson 2022 Fig. B2 (varying inhibitor field value)")
 def _young_b2(seed, quick, out, frames):
     # the code's WS = Na wa - Ni wi is weight wa - wi on the inner box and -wi on the ring
-    # (see young-b1); the appendix's first two panels, wi = 1.05 and 1.00, give the inner box
-    # a weight <= 0, which YoungCA refuses (an activator weight is > 0), so they are not run
-    cas = [mj.YoungCA([(2, 5, round(1.0 - wi, 2), -wi)], "box", include_self=True, denominator=100) for wi in B2_RUN]
-    labels = [f"wi = {wi:.2f}" for wi in B2_RUN]
-    return _young_series(cas, labels, 6, "Tinson 2022 B2: wi from 0.95 (upper left) to 0.10, t = 20, Moore boxes "
-                         "Ra 2, Ri 5, wa 1", {"wi": list(B2_RUN), "not_run": [1.05, 1.0]}, seed, out, 100, 20)
+    # (see young-b1); the first two panels, wi = 1.05 and 1.00, weigh the inner box -0.05
+    # and 0: no cell can turn on there (YoungCA's rule on weights: w_act > w_inh)
+    cas = [mj.YoungCA([(2, 5, round(1.0 - wi, 2), -wi)], "box", include_self=True, denominator=100) for wi in B2_WI]
+    labels = [f"wi = {wi:.2f}" for wi in B2_WI]
+    return _young_series(cas, labels, 5, "Tinson 2022 B2: wi from 1.05 (upper left) to 0.10, t = 20, Moore boxes "
+                         "Ra 2, Ri 5, wa 1", {"wi": list(B2_WI)}, seed, out, 100, 20)
 
 
 NEIGHBOURHOOD_NAMES = {"box": "Moore box", "disc": "disc", "diamond": "von Neumann diamond"}
