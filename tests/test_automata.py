@@ -524,7 +524,9 @@ def test_presets_quick_and_deterministic(tmp_path):
 
     assert len(PRESETS) >= 6
     for name, preset in PRESETS.items():
-        assert name.startswith(("young-", "dur-", "life-", "thesis-")) and preset.description and preset.figure
+        # (and `reinforcement-term`, a plot run through the same builder interface)
+        assert name.startswith(("young-", "dur-", "life-", "thesis-", "reinforcement-")) and preset.description \
+            and preset.figure
     a = PRESETS["young-b1"].run(seed=3, quick=True, out=tmp_path / "a.png", frames=True)
     b = PRESETS["young-b1"].run(seed=3, quick=True, out=tmp_path / "b.png", frames=False)
     assert a["steps"] == b["steps"] == 20 and (tmp_path / "a_frames.png").exists()

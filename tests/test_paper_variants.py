@@ -11,6 +11,7 @@ import json
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import morphojax as mj
 from morphojax.domains import laplacian, max_stable_dt
@@ -182,3 +183,43 @@ def test_dur_fig8_series_species_1_takes_room_when_species_3_weakens(tmp_path):
     species_3 = [share[w][3] for w in sorted(share, reverse=True)]
     assert all(a > b for a, b in zip(species_3, species_3[1:]))
     assert max(abs(share[w][0] - share[-0.2][0]) for w in share) < 0.05  # species 0 barely moves
+
+
+def cubic_oracle(model, lo, hi):
+    """The roots and extrema of a model's reaction from NumPy alone: the cubic through eight
+    direct evaluations of it (np.polyfit), np.roots of it and of its derivative."""
+    c = np.linspace(lo, hi, 8)
+    y = np.array([float(model.reaction(jnp.array([v]))[0]) for v in c])
+    coeffs = np.polyfit(c, y, 3)
+    assert np.allclose(np.polyval(coeffs, c), y, atol=1e-5 * np.abs(y).max())  # it is a cubic
+    roots = np.sort(np.roots(coeffs).real)
+    extrema = np.sort(np.roots(np.polyder(coeffs)).real)
+    return roots, extrema, np.polyval(coeffs, extrema), np.polyval(np.polyder(coeffs, 2), extrema)
+
+
+@pytest.mark.parametrize("t, w", [(1.0, 1.0), (5.0, 2.0), (-0.5, 0.3)])
+def test_reinforcement_term_marks_are_the_models(t, w):
+    from morphojax.presets._reinforcement_term import term_marks
+
+    model = mj.Reinforcement(threshold=t, width=w)
+    lo, hi = t - 1.25 * w, t + 1.25 * w
+    marks = term_marks(model, lo, hi)
+    roots, extrema, rates, curvature = cubic_oracle(model, lo, hi)
+    np.testing.assert_allclose([r["at"] for r in marks["root"]], roots, atol=1e-4 * w)
+    assert [r["attracts"] for r in marks["root"]] == [True, False, True]  # eq. 6: t repels, t -+ w attract
+    (low,), (high,) = marks["minimum"], marks["maximum"]
+    assert curvature[0] > 0 > curvature[1]  # the oracle's first extremum is the minimum
+    np.testing.assert_allclose([low["at"], high["at"]], extrema, atol=1e-4 * w)
+    np.testing.assert_allclose([low["rate"], high["rate"]], rates, rtol=1e-4)
+    # the section's statements: roots t - w, t, t + w; -w and +w at the extrema
+    np.testing.assert_allclose(roots, [t - w, t, t + w], atol=1e-4 * w)
+    np.testing.assert_allclose(rates, [-w, w], rtol=1e-4)
+
+
+def test_reinforcement_term_preset_draws_the_marks(tmp_path):
+    summary = mj.PRESETS["reinforcement-term"].run(out=tmp_path / "term.png")
+    assert (tmp_path / "term.png").exists() and summary["model"]["threshold"] == summary["model"]["width"] == 1.0
+    roots, extrema, rates, _ = cubic_oracle(mj.Reinforcement(threshold=1.0, width=1.0), *summary["range"])
+    drawn = summary["drawn"]  # read back from the plot's markers
+    np.testing.assert_allclose(drawn["root"], np.stack([roots, np.zeros(3)], 1), atol=1e-4)
+    np.testing.assert_allclose(drawn["minimum"] + drawn["maximum"], np.stack([extrema, rates], 1), atol=1e-4)

@@ -30,6 +30,7 @@ from . import _cells_chapter7  # noqa: F401  (registers thesis chapter 7's unlis
 from . import _saturation_map  # noqa: F401  (registers thesis Fig. 7.14 with its caption's areas)
 from . import _solids  # noqa: F401  (registers the 3D lattice's solid texture)
 from . import _lundelius  # noqa: F401  (registers paper 004's own grid setting)
+from . import _reinforcement_term  # noqa: F401  (registers the leopard paper's Fig. 7: the reinforcement term's plot)
 from ._automaton_outputs import run_automaton, run_life_like
 
 REACTION_DIFFUSION_PRESETS = of_kind(ExperimentPreset.kind)  # snapshots of PRESETS by kind
