@@ -76,7 +76,8 @@ def measure(kind: str, repeats: int) -> dict:
 
 
 def table(kind: str, conditions: dict) -> list[str]:
-    stages = ["design", "noise", "local", "report", "intervals", "verdict", "auto_screen", "auto_fits"]
+    stages = ["design", "noise", "local", "report", "intervals", "restart", "refine", "verdict", "auto_screen",
+              "auto_fits"]
     present = [s for s in stages if any(s in r["timings"] for rows in conditions.values() for r in rows)]
     lines = [f"### {kind}", "",
              "| condition | wall s | CPU s | load | " + " | ".join(present) + " |",

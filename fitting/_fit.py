@@ -513,7 +513,7 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
     score = float(distance(fit_stats, tstats, stats))
-    timings["report"] = time.perf_counter() - t0
+    _spent(timings, "report", t0)
     ivals, undetermined, correlated, better = {}, [], [], None
     if intervals:
         from ._uncertainty import interval_report
@@ -526,12 +526,12 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
         ivals, undetermined, correlated, better = interval_report(
             sim, space, stats, theta_best, keys, tstats, noise, inflate=inflate, seed=state.settings["seed"],
             floor=floor, floor_losses=floor_losses, valley=valley)
-        timings["intervals"] = time.perf_counter() - t0
+        _spent(timings, "intervals", t0)
     if better is not None and restart:
         t0 = time.perf_counter()
         rec.stage = "restart"
         again = _local_stage(state, tstats, [space.to_free(jnp.asarray(better[0], jnp.float32))], rec)
-        timings["restart"] = time.perf_counter() - t0
+        _spent(timings, "restart", t0)
         if again[0][0] < best_loss:
             result = _conclude(target, state, tstats, sorted(again + finals, key=lambda f: f[0] if np.isfinite(f[0]) else np.inf), rec, timings,
                                t_start, settings, design_rows, history, intervals, restart=False)
@@ -557,6 +557,12 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
         config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
         correlated=correlated, resume=state,
     )
+
+
+def _spent(timings: dict, stage: str, t0: float) -> None:
+    """Add the time since t0 to `stage`: a restart makes the report and the intervals again,
+    and the breakdown counts both passes."""
+    timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - t0
 
 
 def refine(result: FitResult, target, *, intervals: bool = True, progress=None) -> FitResult:
