@@ -418,6 +418,8 @@ def main():
     p.add_argument("--dry-run", action="store_true",
                    help="one case, one degradation, tiny settings: the plumbing in about a minute")
     p.add_argument("--tuning", action="store_true", help="the tuning seeds (never the report's)")
+    p.add_argument("--top", type=int, default=None,
+                   help="families `auto` fits in full (default: fit's own); the report's name gains -topN")
     args = p.parse_args()
     if args.pictures:
         pictures(args.only, args.tuning)
@@ -428,9 +430,11 @@ def main():
             run_fits([args.only[0]], ["all"], "turing", (24, 24), settings, args.tuning, Path(tmp) / "dry-run")
             print((Path(tmp) / "dry-run.md").read_text())
         return
-    suffix = ("" if args.model == "auto" else f"-{args.model}") + ("-tuning" if args.tuning else "")
+    suffix = ("" if args.model == "auto" else f"-{args.model}") + (f"-top{args.top}" if args.top else "") + (
+        "-tuning" if args.tuning else "")
     out = RESULTS / f"fit_photolike{suffix}"
-    run_fits(args.only, args.degradations, args.model, args.shape, {}, args.tuning, out)
+    settings = {"top": args.top} if args.top else {}
+    run_fits(args.only, args.degradations, args.model, args.shape, settings, args.tuning, out)
     print(out.with_suffix(".md").read_text())
 
 

@@ -174,10 +174,8 @@ def test_cli_sizes_refused_before_anything_runs(capsys, small_limit):
 
 
 # ---- 3. one kind of error from every loader -------------------------------------------------
-@FEW
-@given(data=st.data())
-def test_damaged_results_raise_one_value_error(tmp_path_factory, data):
-    good = _result_file(tmp_path_factory.mktemp("r") / "good.npz")
+def _damaged(good: Path, data) -> Path:
+    """`good`'s bytes damaged as a disk or a download would (drawn by hypothesis), as bad.npz."""
     raw = bytearray(good.read_bytes())
     how = data.draw(st.sampled_from(["truncate", "flip", "random", "empty", "append"]))
     if how == "truncate":
@@ -193,6 +191,13 @@ def test_damaged_results_raise_one_value_error(tmp_path_factory, data):
         raw += data.draw(st.binary(min_size=1, max_size=64))
     bad = good.with_name("bad.npz")
     bad.write_bytes(bytes(raw))
+    return bad
+
+
+@FEW
+@given(data=st.data())
+def test_damaged_results_raise_one_value_error(tmp_path_factory, data):
+    bad = _damaged(_result_file(tmp_path_factory.mktemp("r") / "good.npz"), data)
     try:
         state, meta = load_npz(bad)
     except ValueError as err:
@@ -647,6 +652,21 @@ def test_tampered_preset_files_are_refused_by_name(tmp_path, capsys, kind, meta_
     assert re.search(field, capsys.readouterr().err) and not (tmp_path / "t.png").exists()
 
 
+@FEW
+@given(data=st.data(), kind=st.sampled_from(["automaton", "potts", "solid"]))
+def test_damaged_preset_files_raise_one_value_error(tmp_path_factory, data, kind):
+    """Damaged bytes of an automaton, Potts or solid file: one ValueError naming the file,
+    or, where the damage missed what matters, the same arrays as the good file."""
+    good = _preset_file(tmp_path_factory.mktemp("p") / "good.npz", kind)
+    bad = _damaged(good, data)
+    try:
+        got = _load_preset_file(kind, bad)
+    except ValueError as err:
+        assert "bad.npz" in str(err)
+    else:
+        np.testing.assert_array_equal(got[0], _load_preset_file(kind, good)[0])
+
+
 def test_cells_files_are_checked(tmp_path):
     from morphojax.cells._state import make_cells
 
@@ -850,6 +870,24 @@ def test_out_folder_and_unwritable_outputs_are_refused_before_the_work(tmp_path,
         assert main(["run", "fig4-r6", "--quick", "--out", "r.png", "--gif", gif]) == 2, gif  # before the run
         assert match in capsys.readouterr().err, gif
         assert not (tmp_path / "r.npz").exists(), gif
+
+
+def test_an_unwritable_folder_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    """A folder the user cannot write (as root every folder is writable, so the permission
+    check is made to say no) is refused by name before the sweep runs."""
+    import morphojax._files
+    from morphojax.cli import main
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(morphojax._files.os, "access", lambda p, mode: Path(p) != locked and real_access(p, mode))
+    monkeypatch.setattr(mj, "sweep", _no_grid)  # refused before any member runs
+    sweep = ["sweep", "--model", "turing", "--vary", "ratio=4,5", "--shape", "8", "8", "--steps", "1"]
+    assert main(sweep + ["--out", str(locked / "s.png")]) == 2
+    assert f"cannot write {locked / 's.png'}: the folder {locked} is not writable" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="is not writable"):
+        mj.save_npz(locked / "r.npz", mj.State.from_arrays([np.zeros((4, 4))]), {})
 
 
 def test_cell_constructors_refuse_sizes_beyond_memory_before_allocating():
