@@ -5,6 +5,7 @@ state is Turing-unstable on a domain, and the wavelength the linear theory predi
                             "upper_a": [4.0, 6.2]}, shape=(50, 50))
     space.unstable        # (20, 2) bool
     space.wavelength      # (20, 2) cells, NaN where no mode grows
+    space.at_limit        # (20, 2, species): the steady state sits on a saturation limit
     space.save("space.png")   # the map, labelled as a sweep's montage, + space.csv
 
 `vary` is a sweep's (`mj.sweep`): a grid {name: values} in C order or a list of parameter
@@ -19,6 +20,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,6 +30,7 @@ from ._render import label_font, montage, png_path, to_image
 from ._serialise import model_to_dict
 from ._files import check_output_path
 from ._stability import linear_stability, operator_modes
+from .models._steady import solve, tolerance
 from ._sweep_members import DT, GROWTH_RATE, grid_labels, label, member_model, sweep_members
 from .domains import AbstractDomain, Lattice
 from .models import AbstractModel
@@ -36,6 +39,9 @@ CHUNK = 1024  # members per compiled call (the last chunk is padded with its las
 TILE = 36  # pixels per member on a labelled grid
 LABELLED = 16  # the most rows or columns drawn as labelled tiles; larger planes are a heat map
 STABLE, KINETIC, NO_STATE = (205, 205, 205), (90, 90, 90), (0, 0, 0)  # tiles without a wavelength
+BEYOND = (150, 30, 30)  # no steady state within the limits: the reaction's own state lies beyond one
+HATCH = (255, 0, 255)  # diagonal lines over a member whose steady state sits on a limit
+HATCH_PERIOD = 4  # pixels between the hatching's lines (one pixel wide)
 
 
 @dataclasses.dataclass
@@ -53,7 +59,12 @@ class TuringSpace:
         unstable without diffusion, e.g. oscillating);
         converged: whether a homogeneous steady state was found (elsewhere everything is
         NaN and `unstable` False); steady_state: (*shape, species); at_limit: (*shape,
-        species) whether it sits on a saturation limit (see `dispersion`);
+        species) whether it sits on a saturation limit (see `dispersion`: there the rates
+        leave the clamp out and are an upper bound, and the run's wavelength may be far
+        from `wavelength`; `table()`'s `at_limit` is True where any species does);
+        beyond_limit: (*shape,) no steady state within the limits, but the reaction with
+        the limits left out has one, outside them (e.g. Turing's (4, 4) with Ua = 3.5:
+        the reaction pulls a back below its limit, so the clamp holds nothing still);
         domain: the domain's description; config: the base model and the run's settings.
     """
 
@@ -68,6 +79,7 @@ class TuringSpace:
     converged: np.ndarray
     steady_state: np.ndarray
     at_limit: np.ndarray
+    beyond_limit: np.ndarray
     domain: str
     config: dict
 
@@ -85,10 +97,19 @@ class TuringSpace:
             raise ValueError(f"no varied parameter {name!r}; varied: {', '.join(self.names)}")
         return self.values[name].reshape(self.shape)
 
+    def limited(self) -> np.ndarray:
+        """Shaped like the grid: a steady state was found and some species sits on a
+        saturation limit (the members the picture hatches)."""
+        return self.converged & self.at_limit.reshape(self.shape + (-1,)).any(-1)
+
     def table(self) -> list[dict]:
-        """One dict per member: its values, unstable, wavelength, rate, kinetic_rate, converged."""
+        """One dict per member: its values, unstable, wavelength, rate, kinetic_rate,
+        converged, at_limit (`limited()`: the state sits on a limit, so the linear theory
+        leaves the clamp out) and beyond_limit (no state within the limits: the
+        reaction's own lies beyond one)."""
         flat = {k: np.asarray(getattr(self, k)).reshape(-1) for k in
                 ("unstable", "wavelength", "rate", "kinetic_rate", "converged")}
+        flat |= {"at_limit": self.limited().reshape(-1), "beyond_limit": np.asarray(self.beyond_limit).reshape(-1)}
         rows = []
         for i in range(len(self)):
             row = {"member": i} | {n: float(self.values[n][i]) for n in self.names}
@@ -100,7 +121,11 @@ class TuringSpace:
     def image(self, cmap="viridis") -> Image.Image:
         """The map as a picture: each member coloured by its predicted wavelength (one
         colour range for all), light grey where no mode grows, dark grey where the state is
-        unstable without diffusion, black where no steady state was found. Grids of at most
+        unstable without diffusion, black where no steady state was found, dark red where
+        none was found within the limits because the reaction's own state lies beyond one
+        (`beyond_limit`). Members whose steady state sits on a limit (`limited()`) are
+        hatched with magenta diagonal lines over their colour: their prediction leaves the
+        clamp out, so the run's wavelength may be far from the one drawn. Grids of at most
         `LABELLED` rows and columns are labelled tiles, with the sweep montage's labels
         (rows: the first names, columns: the last) and each tile's wavelength written on
         it; larger 2D grids are a heat map with the two ranges on its axes."""
@@ -111,11 +136,12 @@ class TuringSpace:
         colours = self._colours(wl, lo, hi, cmap)
         grid = self.axes is not None and len(self.axes) == 2
         if grid and max(self.shape) > LABELLED:
-            picture = Image.fromarray(colours.reshape(self.shape + (3,)), "RGB")
             scale = max(2, 320 // max(self.shape))  # about 320 pixels along the longer axis
-            picture = picture.resize((picture.width * scale, picture.height * scale), Image.NEAREST)
-            return _framed(picture, self.names, self.axes, title)
-        tiles = [_tile(c, f"{w:.3g}" if np.isfinite(w) else "") for c, w in zip(colours, wl)]
+            pixels = np.repeat(np.repeat(colours.reshape(self.shape + (3,)), scale, 0), scale, 1)
+            marked = np.repeat(np.repeat(self.limited(), scale, 0), scale, 1)
+            return _framed(Image.fromarray(_hatched(pixels, marked), "RGB"), self.names, self.axes, title)
+        limited = self.limited().reshape(-1)
+        tiles = [_tile(c, f"{w:.3g}" if np.isfinite(w) else "", mark) for c, w, mark in zip(colours, wl, limited)]
         if self.axes is None:
             captions = [label({n: self.values[n][i] for n in self.names}) for i in range(len(self))]
             return montage([_captioned(t, c) for t, c in zip(tiles, captions)], min(len(tiles), 6), title=title)
@@ -131,6 +157,7 @@ class TuringSpace:
         colours[~np.isfinite(wl)] = STABLE
         colours[converged & kinetic & ~np.isfinite(wl)] = KINETIC
         colours[~converged] = NO_STATE
+        colours[~converged & self.beyond_limit.reshape(-1)] = BEYOND
         return colours.astype(np.uint8)
 
     def _title(self, lo, hi, any_unstable) -> str:
@@ -138,7 +165,8 @@ class TuringSpace:
                  if k not in self.names and np.ndim(v) == 0 and np.isfinite(float(v))}
         parts = [type(self.model).__name__, label(fixed), self.domain]
         parts.append(f"colour: wavelength {lo:.3g}-{hi:.3g}" if any_unstable else "no member Turing-unstable")
-        parts.append("grey: stable, dark: unstable without diffusion, black: no steady state")
+        parts.append("grey: stable, dark: unstable without diffusion, black: no steady state, red: state beyond a "
+                     "limit, magenta lines: state on a limit")
         return " | ".join(p for p in parts if p)
 
     def save(self, path, cmap="viridis") -> dict:
@@ -157,8 +185,20 @@ class TuringSpace:
         return {"png": path, "csv": table}
 
 
-def _tile(colour, text) -> Image.Image:
+def _hatched(pixels, marked) -> np.ndarray:
+    """`pixels` (rows, cols, 3) with the `HATCH` lines drawn where `marked` (rows, cols):
+    every pixel whose row + column is a multiple of `HATCH_PERIOD`, so a member of two
+    pixels or more on a side always shows one."""
+    rows, cols = np.indices(marked.shape)
+    out = np.array(pixels, np.uint8)
+    out[marked & ((rows + cols) % HATCH_PERIOD == 0)] = HATCH
+    return out
+
+
+def _tile(colour, text, mark=False) -> Image.Image:
     img = Image.new("RGB", (TILE, TILE), tuple(int(c) for c in colour))
+    if mark:
+        img = Image.fromarray(_hatched(np.asarray(img), np.ones((TILE, TILE), bool)), "RGB")
     if text:
         draw = ImageDraw.Draw(img)
         box = draw.textbbox((0, 0), text, font=label_font())
@@ -248,9 +288,10 @@ def turing_space(model: AbstractModel, domain: AbstractDomain | None = None, var
     eig, wavelengths = operator_modes(domain, shape, modes)
 
     def one(vals):
-        d = linear_stability(member_model(model, None, 0.0, vals)[0], eig, wavelengths, guess)
+        member = member_model(model, None, 0.0, vals)[0]
+        d = linear_stability(member, eig, wavelengths, guess)
         return (d.turing_unstable, d.fastest_wavelength, d.fastest_rate, d.kinetic_rate, d.converged,
-                d.steady_state, d.at_limit)
+                d.steady_state, d.at_limit, ~d.converged & _beyond_limit(member, guess))
 
     run = jax.jit(jax.vmap(one))
     n = len(values[names[0]])
@@ -260,11 +301,53 @@ def turing_space(model: AbstractModel, domain: AbstractDomain | None = None, var
         idx = np.minimum(np.arange(start, start + size), n - 1)
         out = run({k: jnp.asarray(values[k][idx]) for k in names})
         pieces.append([np.asarray(o)[: min(size, n - start)] for o in out])
-    unstable, wl, rate, kinetic, ok, steady, at_limit = (np.concatenate(p) for p in zip(*pieces))
+    unstable, wl, rate, kinetic, ok, steady, at_limit, beyond = (np.concatenate(p) for p in zip(*pieces))
     config = {"model": model_to_dict(model), "domain": domain.description, "shape": None if shape is None else
               [int(v) for v in np.atleast_1d(shape)], "modes": int(np.size(eig))}
     return TuringSpace(model=model, names=names, axes=axes, values=values, unstable=unstable.reshape(grid),
                        wavelength=wl.reshape(grid), rate=rate.reshape(grid), kinetic_rate=kinetic.reshape(grid),
                        converged=ok.reshape(grid), steady_state=steady.reshape(grid + steady.shape[1:]),
-                       at_limit=at_limit.reshape(grid + at_limit.shape[1:]), domain=domain.description,
+                       at_limit=at_limit.reshape(grid + at_limit.shape[1:]), beyond_limit=beyond.reshape(grid),
+                       domain=domain.description,
                        config=config)
+
+
+class _Unlimited(eqx.Module):
+    """`model` with its saturation limits left out, as `solve` reads a model (its
+    reaction, species, closed-form state and limits): the reaction's own steady state."""
+
+    model: AbstractModel
+
+    @property
+    def n_species(self):
+        return self.model.n_species
+
+    @property
+    def species(self):
+        return self.model.species
+
+    @property
+    def lower(self):
+        return jnp.full((self.model.n_species,), -jnp.inf)
+
+    @property
+    def upper(self):
+        return jnp.full((self.model.n_species,), jnp.inf)
+
+    def reaction(self, x):
+        return self.model.reaction(x)
+
+    def unclamped_state(self):
+        return self.model.unclamped_state()
+
+
+def _beyond_limit(model, guess) -> jax.Array:
+    """() whether the reaction, its limits left out, has a steady state (Newton's method
+    from the same start) that lies outside the limits: then no state within them may exist
+    because the reaction pushes back from the limit (a state held by the clamp needs a
+    reaction pushing past it)."""
+    x, ok, _ = solve(_Unlimited(model), guess)
+    x = x.reshape(model.n_species)
+    lo, hi = (jnp.broadcast_to(jnp.asarray(v, x.dtype).reshape(-1), x.shape) for v in (model.lower, model.upper))
+    near = tolerance(x.dtype) * (1.0 + jnp.abs(x))
+    return ok.reshape(()) & jnp.any((x < lo - near) | (x > hi + near))

@@ -99,6 +99,17 @@ def test_states_respect_the_limits_or_say_there_is_none():
         mj.Morphogen(production=1.0).homogeneous_state()
 
 
+def test_fastest_wavelength_is_nan_for_a_stable_state():
+    """Turing r = 3 < 4 (the threshold): the state (4, 4) is found, stable without
+    diffusion, and every mode decays (checked by hand: det(J + mu D) > 0 and trace < 0 for
+    all mu <= 0), so no mode is fastest-growing."""
+    d = mj.dispersion(mj.Turing(ratio=3.0, scale=3.0), mj.Lattice(), (32, 32))
+    assert bool(d.converged) and float(d.kinetic_rate) < 0 and float(d.fastest_rate) < 0
+    assert not bool(d.turing_unstable)
+    assert math.isnan(float(d.fastest_wavelength))
+    assert math.isnan(d.python()["fastest_wavelength"])
+
+
 def test_gray_scott_states_from_a_guess():
     F, k = 0.03, 0.01
     assert [float(v) for v in mj.GrayScott(feed=F, kill=k).homogeneous_state()] == [1.0, 0.0]
@@ -331,6 +342,57 @@ def test_turing_space_agrees_with_dispersion_member_by_member(tmp_path):
                             shape=(16, 16))
     assert plane.unstable.any() and not plane.unstable.all()
     assert plane.image().width > 100
+
+
+def test_turing_space_marks_states_on_and_beyond_a_limit(tmp_path):
+    """Ua = 4 holds a on its limit 4 (the state (4, 4)): the table's at_limit is True and
+    the picture hatches that member only; Ua = 3.5 lies below the reaction's own a = 4, so
+    there is no state within the limits, reported as beyond_limit and drawn in its colour."""
+    import dataclasses
+
+    from morphojax import _turing_space as ts
+
+    space = mj.turing_space(mj.Turing(scale=3.0), mj.Lattice(), vary={"ratio": [12.0, 40.0], "upper_a": [3.5, 4.0, INF]},
+                            shape=(24, 24))
+    table = {(r["ratio"], r["upper_a"]): r for r in space.table()}
+    for ratio in (12.0, 40.0):
+        assert [table[ratio, ua]["at_limit"] for ua in (3.5, 4.0, INF)] == [False, True, False]
+        assert [table[ratio, ua]["beyond_limit"] for ua in (3.5, 4.0, INF)] == [True, False, False]
+        assert table[ratio, 4.0]["unstable"] and table[ratio, 4.0]["converged"]
+    # lower limits too: Lb = 4 holds b on it, Lb = 4.5 lies above the reaction's own b = 4
+    lb = mj.turing_space(mj.Turing(ratio=12.0, scale=3.0), mj.Lattice(), vary={"lower_b": [0.0, 4.0, 4.5]},
+                         shape=(16, 16))
+    assert lb.limited().tolist() == [False, True, False] and lb.beyond_limit.tolist() == [False, False, True]
+    csv_rows = space.save(tmp_path / "space.png")["csv"].read_text().splitlines()
+    header = csv_rows[0].split(",")
+    assert header[-2:] == ["at_limit", "beyond_limit"]
+    assert [r.split(",")[-2] for r in csv_rows[1:4]] == ["false", "true", "false"]
+
+    def pixels(s):
+        return np.asarray(s.image(), int)
+
+    marked = pixels(space)
+    flags = space.at_limit.copy()
+    flags[0, 1] = False  # (12, Ua = 4) drawn unmarked
+    on_limit = (pixels(dataclasses.replace(space, at_limit=flags)) != marked).any(-1)
+    flags = space.at_limit.copy()
+    flags[0, 2, 0] = True  # (12, no limit) drawn marked
+    off_limit = (pixels(dataclasses.replace(space, at_limit=flags)) != marked).any(-1)
+    assert on_limit.any() and off_limit.any() and not (on_limit & off_limit).any()
+    # the marked member's differing pixels are the hatching (the wavelength's text is written over it)
+    assert (marked[on_limit] == ts.HATCH).all(-1).mean() > 0.8
+    # the tiles are in Ua's order: the member without a limit lies right of the one on it
+    assert np.nonzero(off_limit)[1].min() > np.nonzero(on_limit)[1].max()
+    assert (marked == ts.BEYOND).all(-1).sum() > 2 * ts.TILE ** 2 - 100  # the two Ua = 3.5 tiles
+    # a heat map (larger than LABELLED) hatches its Ua = 4 column and nothing else
+    plane = mj.turing_space(mj.Turing(scale=3.0), mj.Lattice(), vary={"ratio": np.linspace(5, 40, 20),
+                            "upper_a": [4.0] + [6.0] * 19}, shape=(16, 16))
+    assert plane.limited()[:, 0].all() and not plane.limited()[:, 1:].any()
+    heat = pixels(plane)
+    cleared = pixels(dataclasses.replace(plane, at_limit=np.zeros_like(plane.at_limit)))
+    hatch = (heat != cleared).any(-1)
+    assert hatch.any() and (heat[hatch] == ts.HATCH).all(-1).mean() > 0.99  # (an axis label's edge over it)
+    assert np.ptp(np.nonzero(hatch)[1]) < heat.shape[1] / 10  # one column of twenty
 
 
 def test_turing_space_chunks_share_one_compiled_program(monkeypatch):
