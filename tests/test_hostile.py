@@ -620,6 +620,23 @@ def test_preset_files_round_trip_and_render(tmp_path, kind):
     assert main(["render", str(path), "--out", str(tmp_path / f"{kind}.png"), "--quiet"]) == 0
 
 
+@pytest.mark.parametrize("lattice", [[9, 10], [6, 7, 8]])
+def test_a_stack_of_automaton_runs_renders_as_a_montage_of_runs(tmp_path, lattice):
+    """A preset's stack of runs (one axis more than its lattice, 2D or 3D) is drawn run by
+    run, side by side: the same tile as one run's file, twice."""
+    from PIL import Image
+
+    from morphojax.cli import main
+
+    runs = np.random.default_rng(2).integers(0, 3, (2, *lattice)).astype(np.int8)
+    one = _preset_file(tmp_path / "one.npz", "automaton", {"lattice": lattice}, {"cells": runs[0]})
+    two = _preset_file(tmp_path / "two.npz", "automaton", {"lattice": lattice}, {"cells": runs})
+    for path in (one, two):
+        assert main(["render", str(path), "--out", str(path.with_suffix(".png")), "--quiet"]) == 0
+    tile, both = Image.open(one.with_suffix(".png")), Image.open(two.with_suffix(".png"))
+    assert 2 * tile.width <= both.width < 3 * tile.width and tile.height <= both.height < 2 * tile.height
+
+
 @pytest.mark.parametrize("kind, meta_changes, array_changes, field", [
     ("automaton", {"lattice": [9, 11]}, None, "'lattice'"),
     ("automaton", {"lattice": [0, 10]}, None, "'lattice'"),

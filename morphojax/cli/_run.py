@@ -460,13 +460,20 @@ def file_kind(path: Path) -> str:
 
 
 def automaton_picture(path: Path, scale: int | None):
-    """An automaton's saved cells as `morphojax ca` draws them (3D: slices)."""
+    """An automaton's saved cells as `morphojax ca` draws them (3D: slices); a preset's stack
+    of runs (one more axis than its `lattice`) as a montage of the runs."""
     cells, meta = load_automaton(path)
-    scale = default_scale(cells.shape) if scale is None else scale
-    check_picture(cells.shape if cells.ndim == 2 else (8,) + cells.shape[1:], scale, f"the picture of {path}")
+    lattice = meta.get("lattice")
+    runs = cells if lattice is not None and cells.ndim == len(lattice) + 1 else cells[None]
+    scale = default_scale(runs.shape[1:]) if scale is None else scale
+    slices = runs.shape[-2:] if runs.ndim == 3 else (8,) + runs.shape[-2:]  # what one run's picture draws
+    check_picture((len(runs) * slices[0],) + slices[1:], scale, f"the picture of {path}")
     if meta.get("automaton") == "LifeLike":
-        return lattice_picture(1 - cells, 1, scale)
-    params = meta.get("params")
-    k = len((params[0] if isinstance(params, list) else params)["species"]) if params else int(cells.max())
-    steps = (meta.get("summary") or {}).get("steps")
-    return lattice_picture(cells, k, scale, title=None if steps is None else f"t = {steps}")
+        pictures = [lattice_picture(1 - run, 1, scale) for run in runs]
+    else:
+        params = meta.get("params")
+        k = max(len(p["species"]) for p in (params if isinstance(params, list) else [params])) if params \
+            else int(cells.max())
+        steps = (meta.get("summary") or {}).get("steps")
+        pictures = [lattice_picture(run, k, scale, title=None if steps is None else f"t = {steps}") for run in runs]
+    return pictures[0] if len(pictures) == 1 else mj.montage(pictures, min(5, len(pictures)))
