@@ -3,6 +3,8 @@ wavelengths, while the perturbation is linear and once the pattern has settled.
 
     python benchmarks/stability_fig4.py            # writes benchmarks/results/stability.md
 
+(its first part: `stability_classic.py` writes the classic reactions' section after it)
+
 For each `fig4-*` preset (Turing r, s = 3 on a wrapping 50 x 50 nine-point lattice, with
 the row's limits):
 - predicted: `mj.dispersion(model, mj.Lattice(), (50, 50))`, the fastest-growing mode of
@@ -41,6 +43,7 @@ OUT = HERE / "results" / "stability.md"
 GROWTH = 14.0  # e-folds of the fastest mode in the linear run
 NOISE = 1e-8  # float64 resolves it: the run ends at about 1e-8 e^14 = 0.012, still linear
 SEEDS = 4  # noise draws per linear run
+CLASSIC_MARK = "<!-- stability_classic.py"  # where benchmarks/stability_classic.py's section begins
 
 
 def dominant_wavelength(*fields) -> float:
@@ -149,7 +152,10 @@ def main():
         "`describe`: `mj.describe`'s wavelength of the settled pattern (the peak of its radial power spectrum).",
         "",
     ]
-    OUT.write_text("\n".join(lines))
+    # the classic reactions' section, written by stability_classic.py, stays as it is
+    previous = OUT.read_text() if OUT.exists() else ""
+    keep = previous[previous.index(CLASSIC_MARK):] if CLASSIC_MARK in previous else ""
+    OUT.write_text("\n".join(lines) + ("\n" + keep if keep else ""))
     print(OUT)
 
 
