@@ -5,7 +5,12 @@ of half the rows and columns (at least 24; wavelengths are in cells, so the stat
 comparable), with two seeds; oriented families screen on the full lattice, since a small
 torus admits only the few stripe directions and spacings that close around it. The `top`
 families first in the screen's order are then fitted in full and the best of those is
-returned.
+returned. While every full fit is rejected (a degenerate coat: grid-scale, uniform, unstable
+or off the target's wavelength), the next families the screen did not reject are fitted in
+full too, one at a time and `top` more at most: a degenerate coat is the answer only when
+none of those draws anything else (on the photo-like suite's report seeds, before this rule,
+2 of the first 6 cases returned a rejected coat while a family the screen kept was never
+fitted).
 
 The screen orders the families by what they were not fitted to (`screen="heldout"`, the
 default): the texture distance of each family's best design point's samples (its seeds'
@@ -163,13 +168,21 @@ def fit_auto(target, names, *, families=None, top=2, progress, assess, score=Non
     oriented = [r for r in screened if FAMILIES[r["family"]].oriented]
     if stripes[1] >= STRIPED_COHERENCE and oriented and oriented[0] not in to_fit:
         to_fit = to_fit + oriented[:1]  # a striped target: its best oriented family too
-    full = []
-    for row in to_fit:
+
+    def fit_full(row):
         fam = FAMILIES[row["family"]]
         mine = _names_for(fam, names)
         opts = {**options, "fixed": _fixed_for(fam, options.get("fixed"))}
         res = assess(fit_one(target, row["family"], mine, progress=progress, **opts))
-        full.append((*shows_stripes(res.sample, stripes), penalised(res.score, len(mine), cfg), res))
+        return (*shows_stripes(res.sample, stripes), penalised(res.score, len(mine), cfg), res)
+
+    full = [fit_full(row) for row in to_fit]
+    # while every full fit is rejected (a degenerate coat), the next families the screen did
+    # not reject are fitted in full too, `top` more at most: a degenerate coat is returned only
+    # when no family the screen kept draws anything else
+    waiting = [r for r in screened if r not in to_fit and r["rejected"] is None][: int(top)]
+    while waiting and all(item[-1].rejected is not None for item in full):
+        full.append(fit_full(waiting.pop(0)))
     # rejected fits last, then by the held-out distance
     full.sort(key=lambda item: (item[-1].rejected is not None, item[-1].heldout["distance"]))
     ranking = [{"family": r.family, "loss": r.score, "penalised": p, "k": len(r.params), "params": r.params,

@@ -591,6 +591,47 @@ def test_auto_ranks_every_screened_family():
         fitting.fit(field, model="auto", families=["turing"], shape=(24, 24), screen="best", progress=False)
 
 
+def test_auto_fits_further_families_while_every_full_fit_is_degenerate(monkeypatch):
+    """When every family fitted in full is rejected (a degenerate coat), `auto` fits the next
+    families the screen kept, `top` more at most, and stops at the first that is not rejected;
+    families the screen rejected are never fitted. (The screen and the fits are stand-ins:
+    the rule is what is tested.)"""
+    from types import SimpleNamespace
+
+    import fitting._auto as auto
+
+    order = ["turing", "bard", "gray-scott", "young", "reinforcement"]
+    fitted = []
+
+    def fake_screen(target, names, families, options, score, rule, progress):
+        return [{"family": f, "score": 1.0, "penalised": 1.0, "heldout": 0.1 * k, "params": {}, "k": 3,
+                 "stage": "screen", "seconds": 0.0, "rejected": "off scale" if f == "reinforcement" else None}
+                for k, f in enumerate(order)]
+
+    def fake_fit(degenerate):
+        def fit_one(target, family, names, **kwargs):
+            fitted.append(family)
+            return SimpleNamespace(family=family, rejected="grid-scale" if family in degenerate else None,
+                                   sample=np.zeros((8, 8)), score=1.0, loss=1.0, params={}, convincing=False,
+                                   heldout={"distance": 0.5}, timings={"total": 0.0}, config={})
+        return fit_one
+
+    target = SimpleNamespace(field=np.random.default_rng(0).random((32, 32)))
+    options = {"stats": StatsConfig(), "fixed": None}
+    monkeypatch.setattr(auto, "screen", fake_screen)
+    for degenerate, top, want_fitted, want in (
+            ({"turing", "bard"}, 2, ["turing", "bard", "gray-scott"], "gray-scott"),  # the third is not degenerate
+            ({"turing"}, 2, ["turing", "bard"], "bard"),  # one of the top is not: no more fits
+            ({"turing", "bard", "gray-scott", "young"}, 2, ["turing", "bard", "gray-scott", "young"], "turing"),
+            ({"turing", "bard", "gray-scott"}, 1, ["turing", "bard"], "turing")):  # `top` more at most
+        fitted.clear()
+        monkeypatch.setattr(auto, "fit_one", fake_fit(degenerate))
+        best = auto.fit_auto(target, None, families=order, top=top, progress=None, assess=lambda r: r,
+                             score=lambda samples: 0.0, **options)
+        assert fitted == want_fitted and best.family == want, (degenerate, top)
+        assert [r["stage"] for r in best.ranking[:len(want_fitted)]] == ["full"] * len(want_fitted)
+
+
 # ---- oriented coats -----------------------------------------------------------------------
 
 
