@@ -125,6 +125,27 @@ def test_listing_5_1_series_keep_the_thesis_time_steps():
     assert np.all(da == da[:1]) and phase.dt <= max_stable_dt(FIG5_8_RANGE[1], "moore")
 
 
+def test_fig5_4_is_listing_5_1_with_five_seeds(tmp_path):
+    """Thesis Fig. 5.4: Listing 5.1 on V with the seeds 1 to 5; each panel is the run of
+    `thesis-fig5.3-v` (Listing 5.1's preset) with that seed, and the five differ."""
+    from PIL import Image
+
+    out = tmp_path / "fig5.4.png"
+    summary = mj.PRESETS["thesis-fig5.4"].run(seed=0, quick=True, out=out)
+    assert summary["seeds"] == [1, 2, 3, 4, 5] and mj.PRESETS["thesis-fig5.4"].figure == "thesis Fig. 5.4"
+    with np.load(out.with_suffix(".npz")) as data:
+        v, seeds = data["v"], data["seeds"].tolist()
+        meta = json.loads(str(data["metadata"]))
+    assert seeds == [1, 2, 3, 4, 5] and meta["member"] == "thesis-fig5.3-v" and v.shape == (5, 32, 32)
+    for panel, seed in zip(v, seeds):
+        alone = mj.run_experiment(mj.preset("thesis-fig5.3-v", quick=True), seed=seed).state.array("b")
+        np.testing.assert_array_equal(panel, np.asarray(alone, np.float32))
+    for i in range(5):
+        for j in range(i + 1, 5):
+            assert np.abs(v[i] - v[j]).max() > 1.0, (seeds[i], seeds[j])  # different patterns, not noise
+    assert Image.open(out).width > 5 * 32 * (160 // 32)  # five panels side by side
+
+
 def test_parameter_maps_ramp_their_parameters_within_the_limit():
     """Figs. 5.5 and 7.14: each map ramps its parameters linearly along its axes (x across
     the columns, y down the rows) and steps within the eight-neighbour sum's limit for its

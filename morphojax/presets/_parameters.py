@@ -9,6 +9,11 @@ member of a series runs the listing's 5000 iterations ("stop at 5000") from the 
 start; the thesis's random numbers are not reproduced.
 
 - Fig. 5.3: the base experiment showing U and V.
+- Fig. 5.4: the base experiment on V with the random seeds 1 to 5 side by side
+  (`thesis-fig5.4`, run by one builder: a figure's members all run with the run's one
+  seed). Each panel is `thesis-fig5.3-v` run with that seed (`--seed N` gives N + 1 to
+  N + 5); the thesis's own generator is not reproduced, so the panels are five starts of
+  this library's, not the thesis's five.
 - Fig. 5.6: Du and Dv multiplied by 1/2, 1, 2, 3, 4; the thesis lowers dt to 0.8 and 0.6
   for factors 3 and 4 (the eight-neighbour sum is stable while dt * D * 12 <= 2).
 - Fig. 5.7: scale s of 0.001, 0.005, 0.01, 0.02, 0.04.
@@ -32,14 +37,20 @@ start; the thesis's random numbers are not reproduced.
 
 from __future__ import annotations
 
+import json
 import math
+import time
 
-from .._experiment import Experiment, Initial, Phase
+import numpy as np
+
+from .._experiment import Experiment, Initial, Phase, run_experiment
+from .._files import write_npz
 from .._parameter_map import parameter_map
+from .._render import montage
 from ..domains import Lattice, max_stable_dt
 from ..models import Bard
 from ._lattices import LISTING_5_1
-from ._registry import ExperimentPreset, register
+from ._registry import AutomatonPreset, ExperimentPreset, lookup, register, registered
 
 LISTING_STEPS = 5000  # "stop at 5000"
 LISTING_SIDE = 80  # "create sqr_grid 80 80"
@@ -48,6 +59,7 @@ FIG5_7_SCALES = (0.001, 0.005, 0.01, 0.02, 0.04)
 FIG5_9_DU = {0.04: 1.0, 0.06: 1.0, 0.10: 1.0, 0.15: 1.0, 0.40: 0.4, 0.80: 0.2}  # Du -> dt
 FIG5_8_RANGE = (0.0, 0.8)  # Du from the first column to the last
 FIG5_8_DT = 0.2
+FIG5_4_SEEDS = 5  # seeds 1-5, "from left to right"
 
 
 def listing_5_1(name, rates, dt, show, description, figure, quick, shape=None, steps=None, model=None) -> Experiment:
@@ -95,6 +107,28 @@ _series("thesis Fig. 5.9", "thesis-fig5.9",
         {f"{du:.2f}": ({**LISTING_5_1, "da": du}, dt, "b", f"Du = {du:.2f}") for du, dt in FIG5_9_DU.items()},
         "thesis Listing 5.1 with Du from 0.04 to 0.80: negative spots, labyrinths, larger spots (six tiles)",
         tuple(f"Du = {du:.2f}" for du in FIG5_9_DU), "V")
+
+
+@registered(AutomatonPreset, "thesis-fig5.4", "thesis Listing 5.1 on V with five random seeds side by side "
+            "(thesis-fig5.3-v run with seeds N + 1 to N + 5 for --seed N: 1 to 5 by default)", "thesis Fig. 5.4")
+def _fig5_4(seed, quick, out, frames):
+    """`thesis-fig5.3-v` (quick: 32 x 32, 2000 iterations) run with the seeds seed + 1 to
+    seed + 5, one panel each; writes the montage `out` and V of every panel (`.npz`)."""
+    experiment = lookup("thesis-fig5.3-v").experiment(quick)
+    seeds = [seed + k for k in range(1, FIG5_4_SEEDS + 1)]
+    t0 = time.perf_counter()
+    results = [run_experiment(experiment, seed=s) for s in seeds]
+    seconds = time.perf_counter() - t0
+    v = np.stack([np.asarray(r.state.array("b"), np.float32) for r in results])
+    scale = max(1, 160 // v.shape[1])
+    montage([r.image(scale=scale) for r in results], FIG5_4_SEEDS, row_labels=["V"],
+            col_labels=[f"seed {s}" for s in seeds],
+            title="thesis Fig. 5.4: Listing 5.1 with five random seeds").save(out)
+    metadata = {"kind": "seed-series", "preset": "thesis-fig5.4", "member": "thesis-fig5.3-v", "seeds": seeds,
+                "steps": experiment.phases[-1].steps, "experiment": experiment.to_dict()}
+    npz = write_npz(out.with_suffix(".npz"), v=v, seeds=np.asarray(seeds), metadata=json.dumps(metadata))
+    return {"steps": experiment.phases[-1].steps, "shape": list(v.shape[1:]), "seeds": seeds,
+            "seconds_run": round(seconds, 3), "files": [str(out), str(npz)]}
 
 
 def _fig5_8(quick):
