@@ -15,7 +15,8 @@ import math
 import numpy as np
 
 from .._files import read_npz
-from .._checks import STEP_COUNTER_MAX
+from .._serialise import _int_field
+from .._serialise import _is_int as _is_whole
 
 AUTOMATA = ("YoungCA", "LifeLike", "Wireworld")
 
@@ -121,16 +122,14 @@ def _lattice(meta: dict, array: np.ndarray, name: str):
 
 
 def _whole(meta: dict, field: str, low: int | None = 0) -> None:
+    """A field that, when present, is a whole number (a count: in [low, the step counter's most])."""
     value = meta.get(field)
     if value is None:
         return
-    if not _is_whole(value) or (low is not None and not low <= value <= STEP_COUNTER_MAX):
-        allowed = "a whole number" if low is None else f"a whole number in [{low}, {STEP_COUNTER_MAX}]"
-        raise ValueError(f"metadata field {field!r} must be {allowed} (got {value!r})")
-
-
-def _is_whole(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
+    if low is not None:
+        _int_field(meta, field, low)
+    elif not _is_whole(value):
+        raise ValueError(f"metadata field {field!r} must be a whole number (got {value!r})")
 
 
 def _finite(value) -> bool:
