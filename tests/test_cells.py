@@ -551,3 +551,107 @@ def test_gradient_of_a_reaction_singular_at_zero_with_spare_capacity():
     grad = float(jax.grad(loss)(1.0))
     fd = (float(loss(1.0 + 1e-2)) - float(loss(1.0 - 1e-2))) / 2e-2
     assert np.isfinite(grad) and grad == pytest.approx(fd, rel=1e-2)
+
+
+def test_uniform_at_draws_the_entries_of_uniform():
+    """`uniform_at` (only the draws of the cells asked for) gives the bits of those entries
+    of `uniform` over the whole capacity, traced or not, at the ends and in the middle."""
+    from morphojax.cells._evaluate import uniform, uniform_at
+
+    for seed in range(3):
+        key = jax.random.fold_in(jax.random.key(seed), 5)
+        for n in (1, 37, 3000):
+            index = jnp.asarray(sorted({0, n - 1, n // 2, n // 3, 1 % n}), jnp.int32)
+            want = np.asarray(uniform(key, n, -1.0, 1.0))[np.asarray(index)]
+            for got in (uniform_at(key, index, n, -1.0, 1.0),
+                        jax.jit(lambda k, i: uniform_at(k, i, n, -1.0, 1.0))(key, index)):
+                assert np.array_equal(np.asarray(got).view(np.uint32), want.view(np.uint32))
+
+
+@pytest.mark.parametrize("p_first", [0.02, 0.4])  # a few children (seat by seat) and many (whole buffers)
+def test_division_angles_drawn_for_dividers_only_change_no_bit(p_first):
+    """The rules' division angles, drawn only for the dividing cells (`Directions.at`),
+    give the children of the angles drawn for every cell (`Directions.full`, what the
+    rules did before): two `Divide` rules with their own direction and spread, the first
+    that fires setting the angle; both of `divide`'s branches."""
+    from morphojax.cells import _step
+    from morphojax.cells._evaluate import apply_rules
+    from morphojax.cells._rules import check_rules
+
+    cells = mc.cell_grid((9, 10), ("A",), lattice="hex", concentration=(1.0,), spread=(0.5,), capacity=400,
+                         key=jax.random.key(4))
+    rules = check_rules((mc.Rule(mc.Divide(0.3, 1.0), when=mc.Chance(p_first)),
+                         mc.Rule(mc.Divide(2.0, 0.5), when=(mc.Chance(p_first), mc.Compare(mc.conc("A"), ">", 1.0)))),
+                        cells.species)
+    lists = mc.simulate_cells(None, cells, 1, 0.1).neighbours
+    touch = _step.contacts(cells, lists, 3.0)
+    fx = apply_rules(rules, cells, touch, cells.step, jnp.asarray(0.1), jax.random.key(8))
+    assert len(fx.direction.draws) == 2 and set(np.unique(np.asarray(fx.direction.rule))) == {-1, 0, 1}
+    wants = fx.divide & cells.alive
+    lazy = _step.divide(cells, cells, wants, fx.direction, cells.step)
+    eager = _step.divide(cells, cells, wants, fx.direction.full(), cells.step)
+    assert int(lazy.count) - int(cells.count) == int(jnp.sum(wants)) > 0
+    assert (int(jnp.sum(wants)) > _step.FEW_DIVISIONS) == (p_first > 0.1)
+    for field in ("position", "polarity", "concentration", "birth"):
+        assert np.array_equal(np.asarray(getattr(lazy, field)), np.asarray(getattr(eager, field))), field
+    # and an angle is its rule's direction + spread x that cell's draw over the whole capacity
+    from morphojax.cells._evaluate import uniform
+
+    rule = np.asarray(fx.direction.rule)
+    for k, (direction, spread, key) in enumerate(fx.direction.draws):
+        want = direction + spread * np.asarray(uniform(key, cells.capacity, -1.0, 1.0))
+        np.testing.assert_array_equal(np.asarray(fx.direction.full())[rule == k], want[rule == k])
+
+
+def test_chance_outside_its_window_draws_nothing_and_fires_nowhere():
+    """A `Chance` is drawn only where some cell can still fire: outside its rule's window
+    nothing divides; inside, the cells that divide are those whose draw is below p."""
+    from morphojax.cells import _step
+    from morphojax.cells._evaluate import apply_rules, uniform
+    from morphojax.cells._rules import check_rules
+
+    cells = mc.cell_grid((6, 6), ("A",), capacity=50)
+    rules = check_rules((mc.Rule(mc.Divide(0.0), when=mc.Chance(0.3), start=5),), cells.species)
+    lists = mc.simulate_cells(None, cells, 1, 0.1).neighbours
+    touch = _step.contacts(cells, lists, 3.0)
+    key = jax.random.key(2)
+    before = apply_rules(rules, cells, touch, jnp.asarray(4), jnp.asarray(0.1), key)
+    inside = apply_rules(rules, cells, touch, jnp.asarray(5), jnp.asarray(0.1), key)
+    assert not bool(jnp.any(before.divide))
+    draws = np.asarray(uniform(jax.random.fold_in(jax.random.fold_in(key, 0), 0), cells.capacity))
+    want = (draws < 0.3) & (np.arange(cells.capacity) < 36)
+    assert np.array_equal(np.asarray(inside.divide), want) and 0 < want.sum() < 36
+
+
+def test_capacity_follows_the_cells_on_rungs(monkeypatch):
+    """A growing listing whose capacity follows its cells on rungs (`capacity_rung`, from
+    `RUNG_CELLS` cells) ends on a rung just above its cells, with the cells of a run that
+    had all the room from the start: the same divisions, and positions and concentrations
+    up to the order of float sums (XLA's reductions may group a row's terms by the
+    buffers' length)."""
+    import morphojax.cells._listing as listing_module
+    from morphojax.cells._listing import capacity_rung
+
+    for count in (1, 100, 1000, 5566, 100_000):
+        for growth in (0, 50, 3000):
+            rung = capacity_rung(count, growth)
+            need = count + max(count // 16 + 64, 2 * growth)
+            shift = max(rung.bit_length() - 4, 0)
+            assert need <= rung < need * 1.125 + 1 and rung % (1 << shift) == 0 and 8 <= rung >> shift < 16
+    text = ("define chemical U limit 4.05\ndefine chemical V\ndefine division_limit 6\ndefine domain packed\n"
+            "define time_step 0.1\nuse chemical U conc 4 dev 0 diff 0.40\nuse chemical V conc 4 dev 1 diff 0.01\n"
+            "create hex_grid 12 10\nrule always react U V scale 0.1 turing alpha 16 beta 12\n"
+            "rule from 20 probability 0.003 divide direction 0 dev 180\n")
+    listing = mj.load_listing(text)
+    monkeypatch.setattr(listing_module, "RUNG_CELLS", 100)
+    followed = listing.run(steps=200, seed=0)
+    roomy = listing.run(steps=200, seed=0, capacity=600)
+    count = int(followed.count)
+    shift = max(followed.capacity.bit_length() - 4, 0)
+    assert count > 150 and count < followed.capacity <= capacity_rung(count, count // 4)
+    assert followed.capacity % (1 << shift) == 0  # a rung: 120 + 120 // 4 + 64 grown by half would not be
+    assert int(roomy.count) == count and roomy.capacity == 600
+    assert np.array_equal(np.asarray(followed.birth)[:count], np.asarray(roomy.birth)[:count])
+    mine, room = followed.live(), roomy.live()
+    for field in ("position", "concentration", "polarity"):
+        np.testing.assert_allclose(mine[field], room[field], rtol=1e-4, atol=1e-4)

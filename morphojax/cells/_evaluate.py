@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -23,7 +24,7 @@ class _Effects(NamedTuple):
     conc: Array
     rates: Array
     divide: Array
-    direction: Array
+    direction: "Directions"
     polarise: Array
     polarity: Array
     maps: dict
@@ -63,6 +64,37 @@ def _holds(condition, value, key: Array, capacity: int) -> Array:
     return uniform(key, capacity) < value(condition.probability)
 
 
+class Directions(eqx.Module):
+    """The division angles the rules asked for (added to the polarity), drawn only for the
+    cells that divide (a few an iteration, against one draw per cell of capacity).
+
+    Attributes:
+        rule: (capacity,) int32, per cell the `Divide` (its place in `draws`) that set its
+            angle, the first that fired; -1 where none did (angle 0).
+        draws: per `Divide`, (direction, spread, key): the angle of cell i is direction +
+            spread x the i-th of `uniform(key, capacity, -1, 1)`, as drawn for every cell.
+    """
+
+    rule: Array
+    draws: tuple
+    dtype: object = eqx.field(static=True)
+
+    def at(self, index: Array) -> Array:
+        """The angles of the cells `index` (clipped into the capacity)."""
+        capacity = self.rule.shape[0]
+        index = jnp.clip(index, 0, capacity - 1)
+        which = jnp.take(self.rule, index)
+        angle = jnp.zeros(index.shape, self.dtype)
+        for k, (direction, spread, key) in enumerate(self.draws):
+            drawn = direction + spread * uniform_at(key, index, capacity, -1.0, 1.0)
+            angle = jnp.where(which == k, drawn, angle)
+        return angle
+
+    def full(self) -> Array:
+        """Every cell's angle, (capacity,)."""
+        return self.at(jnp.arange(self.rule.shape[0]))
+
+
 def _gradient(cells: Cells, touch: Contacts, name: str) -> Array:
     """Eq. 4.10: sum_j (R_j - R_i) d_j / |d_j|, per cell (C, 2)."""
     r = cells[name]
@@ -77,7 +109,8 @@ def apply_rules(rules: tuple[Rule, ...], cells: Cells, touch: Contacts, iteratio
     near_count = touch.count
     fx = _Effects(
         conc=jnp.zeros_like(cells.concentration), rates=jnp.zeros_like(cells.diffusion),
-        divide=jnp.zeros(capacity, bool), direction=jnp.zeros_like(cells.polarity),
+        divide=jnp.zeros(capacity, bool), direction=Directions(jnp.full(capacity, -1, jnp.int32), (),
+                                                               cells.polarity.dtype),
         polarise=jnp.zeros(capacity, bool), polarity=cells.polarity, maps={},
     )
     alive = cells.alive
@@ -90,7 +123,12 @@ def apply_rules(rules: tuple[Rule, ...], cells: Cells, touch: Contacts, iteratio
 
         mask = alive & rule.active(iteration)
         for c, condition in enumerate(rule.when):
-            mask &= _holds(condition, value, jax.random.fold_in(rule_key, c), capacity)
+            condition_key = jax.random.fold_in(rule_key, c)
+            if isinstance(condition, Chance):  # no draws where no cell can fire (outside the rule's window)
+                mask &= jax.lax.cond(jnp.any(mask), lambda c=condition, k=condition_key: _holds(c, value, k, capacity),
+                                     lambda: jnp.zeros(capacity, bool))
+            else:
+                mask &= _holds(condition, value, condition_key, capacity)
         action_key = jax.random.fold_in(rule_key, len(rule.when))
         fx = _act(rule.action, fx, mask, value, cells, touch, dt, action_key, maps)
     return fx
@@ -118,8 +156,22 @@ def uniform(key: Array, n: int, low: float = 0.0, high: float = 1.0) -> Array:
     if (_threefry_rounds is None or not jax.config.jax_threefry_partitionable
             or str(jax.random.key_impl(key)) != "threefry2x32"):
         return jax.random.uniform(key, (n,), minval=low, maxval=high)
+    return _uniform_of(key, jnp.arange(n, dtype=jnp.uint32), low, high)
+
+
+def uniform_at(key: Array, index: Array, n: int, low: float = 0.0, high: float = 1.0) -> Array:
+    """`uniform(key, n, low, high)[index]` (index within [0, n)), drawing only those entries:
+    with Threefry's partitionable bit scheme, entry i's bits depend on i alone."""
+    if (_threefry_rounds is None or not jax.config.jax_threefry_partitionable
+            or str(jax.random.key_impl(key)) != "threefry2x32"):
+        return jnp.take(jax.random.uniform(key, (n,), minval=low, maxval=high), index, mode="clip")
+    return _uniform_of(key, index.astype(jnp.uint32), low, high)
+
+
+def _uniform_of(key: Array, count: Array, low: float, high: float) -> Array:
+    """The uniform draws of the entries `count` (uint32) of Threefry's partitionable scheme."""
     k = jax.random.key_data(key)
-    count = jnp.arange(n, dtype=jnp.uint32)  # the low word of the iota; the high word is 0 (n < 2**32)
+    # count: the low word of the iota; the high word is 0 (n < 2**32)
     bits1, bits2 = _threefry_rounds(k[0], k[1], jnp.zeros_like(count), count, use_rolled_loops=False)
     bits = (bits1 ^ bits2) >> np.uint32(32 - 23) | np.uint32(0x3F800000)  # a float in [1, 2)
     floats = jax.lax.bitcast_convert_type(bits, jnp.float32) - jnp.float32(1.0)
@@ -145,8 +197,11 @@ def _act(action, fx: _Effects, mask: Array, value, cells: Cells, touch: Contacts
         return fx._replace(conc=fx.conc.at[rows].add(jnp.where(mask, rate, 0.0)))
     if isinstance(action, Divide):
         first = mask & ~fx.divide  # the first divide rule that fires sets the direction
-        angle = action.direction + _uniform(key, (capacity,), action.spread)
-        return fx._replace(divide=fx.divide | mask, direction=jnp.where(first, angle, fx.direction))
+        old = fx.direction
+        direction = Directions(jnp.where(first, len(old.draws), old.rule), old.draws + ((action.direction,
+                                                                                         action.spread, key),),
+                               old.dtype)
+        return fx._replace(divide=fx.divide | mask, direction=direction)
     if isinstance(action, Map):
         low, high, a, b = (value(v) for v in (action.low, action.high, action.out_low, action.out_high))
         span = jnp.where(high != low, high - low, 1.0)

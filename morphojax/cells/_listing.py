@@ -75,6 +75,18 @@ from ._state import Cells
 CAPACITY_GROWTH = 1.5  # a piece that outgrows the capacity runs again with half as much room again
 ROOM_GROWTH = 1.5  # and so does the neighbour search (every slot costs every iteration)
 MAX_RETRIES = 24  # 1.5 ** 24: from one cell to over 16,000 times as many
+RUNG_CELLS = 1024  # from this many live cells, a growing run's capacity follows them on rungs
+
+
+def capacity_rung(count: int, growth: int) -> int:
+    """The capacity a piece of a growing run gets once it has `RUNG_CELLS` cells: the live
+    `count`, a sixteenth of them more plus 64, and at least twice the last piece's
+    `growth`, rounded up to the next rung m x 2**k (m = 8..16: steps of at most an eighth,
+    each compiled once). Every iteration pays for every slot of capacity, empty or not;
+    a piece that outgrows its rung still runs again with half as much room again."""
+    need = int(count) + max(int(count) // 16 + 64, 2 * int(growth))
+    shift = max(need.bit_length() - 4, 0)
+    return -(-need >> shift) << shift
 
 
 def _more_room(room, need, given) -> list[int]:
@@ -236,7 +248,10 @@ class Listing:
         need, and `bucket_size`): the random draws depend on
         the iteration only, so the cells are those of a run that had the room from the
         start (up to the order of float sums), and the capacity follows the tissue instead
-        of being guessed.
+        of being guessed. From `RUNG_CELLS` live cells on, each piece also starts on the
+        rung just above its cells (`capacity_rung`, up or down), for up to a third less work
+        than buffers grown by half: the same cells up to the order of float sums (XLA may
+        group a row's sums by the buffers' length; the same divisions).
         """
         from .._progress import progress_bar
         from ._simulate import MAX_ROOM, PIECES, needed_room, simulate_cells
@@ -266,8 +281,14 @@ class Listing:
         ends = sorted(set(iterations) | set(range(piece, last, piece)))
         bar = progress_bar(last, self.name if progress is True else progress, unit="iteration") if progress else None
         out, shots, retries = cells.with_capacity(int(capacity)), [], 0
+        last_count = int(out.count)
         try:
             for end in ends:
+                if grow_cells and int(out.count) >= RUNG_CELLS:  # the capacity follows the cells
+                    rung = capacity_rung(int(out.count), int(out.count) - last_count)
+                    if rung != out.capacity:
+                        out = out.with_capacity(rung)
+                last_count = int(out.count)
                 while int(out.step) < end:
                     trial = simulate_cells(
                         None, out, end - int(out.step), self.dt, rules=self.rules, key=run_key, domain=self.domain,

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from ._contacts import Contacts, contacts
-from ._evaluate import apply_rules
+from ._evaluate import Directions, apply_rules
 from ._neighbours import NeighbourList, Search
 from ._rules import Rule
 from ._space import clamp_positions
@@ -90,13 +90,14 @@ def collision_offset(cells: Cells, touch: Contacts) -> Array:
 
 
 # ---- division -------------------------------------------------------------------------
-def divide(cells: Cells, parents: Cells, wants: Array, direction: Array, iteration: Array) -> Cells:
+def divide(cells: Cells, parents: Cells, wants: Array, direction: Array | Directions, iteration: Array) -> Cells:
     """Append to `cells` a child for every cell in `wants`, in index order, while capacity
     lasts. A child is its parent as the rules saw it (`parents`, the iteration's current
     state: the thesis lists newborns while evaluating rules, 4.1 steps 2 and 7), one unit
     away at the parent's polarity + `direction`; so a child differs from its parent by the
     parent's update of this iteration, which is what lets a tissue grown from one cell
-    (Fig. 6.3) break its symmetry.
+    (Fig. 6.3) break its symmetry. `direction`: the angles the rules drew, per cell
+    (capacity,) or as `Directions` (drawn then for the dividing cells only).
 
     An iteration without divisions writes nothing, and one with at most `FEW_DIVISIONS`
     writes only their seats; the children are the same either way."""
@@ -110,7 +111,7 @@ def divide(cells: Cells, parents: Cells, wants: Array, direction: Array, iterati
 FEW_DIVISIONS = 16  # divisions an iteration writes seat by seat; more: every buffer is written whole
 
 
-def _append(cells: Cells, parents: Cells, wants: Array, direction: Array, iteration: Array,
+def _append(cells: Cells, parents: Cells, wants: Array, direction: Array | Directions, iteration: Array,
             size: int | None) -> Cells:
     """`divide` for the first `size` cells in `wants` (all of them: None)."""
     capacity = cells.capacity
@@ -128,7 +129,11 @@ def _append(cells: Cells, parents: Cells, wants: Array, direction: Array, iterat
     seat = cells.count + rank
     fits = wanting & (seat < capacity)
     target = jnp.where(fits, seat, capacity)
-    angle = pick(parents.polarity) + pick(direction)
+    if isinstance(direction, Directions):
+        drawn = direction.full() if size is None else direction.at(source)
+    else:
+        drawn = pick(direction)
+    angle = pick(parents.polarity) + drawn
     child_position = pick(parents.position) + jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=1)
 
     def put(buffer, values, axis=0):
