@@ -21,12 +21,13 @@ Protocol (fixed before any tuning of the fit against this suite):
   cell_pixels); the fit's verdict (`convincing`, `heldout`) and its time. Added after the
   first report (diagnostics, not goals): the wavelength the fit measured on the part of the
   photo it sees, and whether the fit moved to it after its local search (`fitting._scale`).
+  Each fit's preview (target, fit, verdict, ranking) goes to results/photolike/fits/.
 - Goals (stated in the table): the right family on at least 80% of the fits, the wavelength
   within 10% on at least 90%.
 
     python benchmarks/fit_photolike.py --pictures        # contact sheets, known wavelengths
     python benchmarks/fit_photolike.py [--only CASE ...] [--degradations none all ...]
-        [--model auto|FAMILY] [--shape 64 64] [--tuning]
+        [--model auto|FAMILY] [--shape 64 64] [--tuning] [--top N]
     python benchmarks/fit_photolike.py --dry-run         # the whole path, tiny settings
 """
 
@@ -312,7 +313,7 @@ def parameter_errors(known: dict, fitted: dict) -> dict:
 
 
 def fit_one(name: str, which: str, seed: int, wavelength: float, photo: np.ndarray, model: str, shape,
-            settings: dict) -> dict:
+            settings: dict, previews: bool = True) -> dict:
     """Fit one degraded photo; the row of the report (with `error` when `load_target` or
     `fit` refuses the photo: a failure like any other)."""
     family, params, _ = CASES[name]
@@ -325,6 +326,10 @@ def fit_one(name: str, which: str, seed: int, wavelength: float, photo: np.ndarr
     except ValueError as err:
         return {**row, "error": str(err), "seconds": time.perf_counter() - t0}
     seconds = time.perf_counter() - t0
+    # each fit's preview (target | fit | loss, with the verdict and ranking), to look at as a person would
+    if previews:
+        (PICTURES / "fits").mkdir(parents=True, exist_ok=True)
+        result.preview(PICTURES / "fits" / f"{name}-{which}{'-tuning' if seed in TUNING_SEEDS else ''}.png")
     expected = wavelength * PHOTO_PIXELS / target.cell_pixels  # the clean coat's, on the fit's lattice
     fitted = dominant_wavelength(result.sample)
     right = result.family == family
@@ -394,13 +399,14 @@ def table(rows, model: str, shape) -> str:
     return "\n".join(lines + [table_row(r) for r in rows]) + "\n"
 
 
-def run_fits(names, degradations, model: str, shape, settings: dict, tuning: bool, out: Path) -> list:
+def run_fits(names, degradations, model: str, shape, settings: dict, tuning: bool, out: Path,
+             previews: bool = True) -> list:
     """Fit every (case, degradation); the JSON and the table are rewritten after each fit."""
     rows = []
     for name in names:
         seed, _, wavelength, photo = coat(name, tuning)
         for which in degradations:
-            row = fit_one(name, which, seed, wavelength, photo, model, shape, settings)
+            row = fit_one(name, which, seed, wavelength, photo, model, shape, settings, previews)
             rows.append(row)
             print(json.dumps(row, default=float), file=sys.stderr)
             out.with_suffix(".json").write_text(json.dumps(rows, indent=1, default=float))
@@ -427,7 +433,8 @@ def main():
     if args.dry_run:
         settings = {"n_design": 4, "rounds": 0, "max_steps": 0, "intervals": False}
         with tempfile.TemporaryDirectory() as tmp:
-            run_fits([args.only[0]], ["all"], "turing", (24, 24), settings, args.tuning, Path(tmp) / "dry-run")
+            run_fits([args.only[0]], ["all"], "turing", (24, 24), settings, args.tuning, Path(tmp) / "dry-run",
+                     previews=False)
             print((Path(tmp) / "dry-run.md").read_text())
         return
     suffix = ("" if args.model == "auto" else f"-{args.model}") + (f"-top{args.top}" if args.top else "") + (
