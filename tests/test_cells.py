@@ -636,8 +636,8 @@ def test_capacity_follows_the_cells_on_rungs(monkeypatch):
         for growth in (0, 50, 3000):
             rung = capacity_rung(count, growth)
             need = count + max(count // 16 + 64, 2 * growth)
-            shift = max(rung.bit_length() - 4, 0)
-            assert need <= rung < need * 1.125 + 1 and rung % (1 << shift) == 0 and 8 <= rung >> shift < 16
+            shift = max(rung.bit_length() - 3, 0)
+            assert need <= rung < need * 1.25 + 1 and rung % (1 << shift) == 0 and 4 <= rung >> shift < 8
     text = ("define chemical U limit 4.05\ndefine chemical V\ndefine division_limit 6\ndefine domain packed\n"
             "define time_step 0.1\nuse chemical U conc 4 dev 0 diff 0.40\nuse chemical V conc 4 dev 1 diff 0.01\n"
             "create hex_grid 12 10\nrule always react U V scale 0.1 turing alpha 16 beta 12\n"
@@ -647,7 +647,7 @@ def test_capacity_follows_the_cells_on_rungs(monkeypatch):
     followed = listing.run(steps=200, seed=0)
     roomy = listing.run(steps=200, seed=0, capacity=600)
     count = int(followed.count)
-    shift = max(followed.capacity.bit_length() - 4, 0)
+    shift = max(followed.capacity.bit_length() - 3, 0)
     assert count > 150 and count < followed.capacity <= capacity_rung(count, count // 4)
     assert followed.capacity % (1 << shift) == 0  # a rung: 120 + 120 // 4 + 64 grown by half would not be
     assert int(roomy.count) == count and roomy.capacity == 600
