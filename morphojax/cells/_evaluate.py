@@ -24,7 +24,7 @@ class _Effects(NamedTuple):
     conc: Array
     rates: Array
     divide: Array
-    direction: "Directions"
+    direction: Directions
     polarise: Array
     polarity: Array
     maps: dict
