@@ -32,6 +32,7 @@ import jax
 import numpy as np
 
 import morphojax as mj
+from stability_fig4 import peak_mode  # the waves of one |frequency| with the most power per wave
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "results" / "stability.md"
@@ -58,18 +59,6 @@ def dominant_wavelength(u) -> float:
     p = np.abs(np.fft.fft2(u - u.mean())) ** 2
     fr, fc = np.meshgrid(np.fft.fftfreq(u.shape[0]), np.fft.fftfreq(u.shape[1]), indexing="ij")
     return 1.0 / float((p * np.hypot(fr, fc)).sum() / p.sum())
-
-
-def peak_mode(u) -> float:
-    """The wavelength of the torus's waves of one |frequency| with the largest mean power
-    per wave (`stability_fig4.peak_mode`)."""
-    p = np.abs(np.fft.fft2(u - u.mean())) ** 2
-    fr, fc = np.meshgrid(np.fft.fftfreq(u.shape[0]), np.fft.fftfreq(u.shape[1]), indexing="ij")
-    ring = np.round(np.hypot(fr, fc) * 1e9).astype(np.int64).ravel()
-    keys, inverse = np.unique(ring, return_inverse=True)
-    mean = np.bincount(inverse, p.ravel()) / np.bincount(inverse)
-    mean[keys == 0] = 0.0
-    return 1e9 / float(keys[np.argmax(mean)])
 
 
 def one_run(model, dt, d, seed):
