@@ -121,6 +121,15 @@ def _preview_lines(result, tf) -> list:
     return lines
 
 
+def panel_sizes(target_shape, fit_shape, side: int) -> tuple:
+    """(width, height) of the target's and the fit's panels, both at the same pixels per
+    lattice cell, the wider `side` pixels wide: a fit on a smaller lattice than the target's
+    is drawn smaller, so that its spots and stripes are seen at the target's scale (drawn at
+    one width, a 64-cell fit of a 118-cell photo showed its pattern 1.8x too large)."""
+    per_cell = side / max(target_shape[1], fit_shape[1])
+    return tuple((max(1, round(s[1] * per_cell)), max(1, round(s[0] * per_cell))) for s in (target_shape, fit_shape))
+
+
 def preview(result, scale: int | None = None) -> Image.Image:
     """target | fitted simulation | loss curve | the fit in the animal's colours, with the
     verdict, the fitted parameters, family, resolution, intervals and the ranking with its
@@ -128,8 +137,7 @@ def preview(result, scale: int | None = None) -> Image.Image:
 
     tf, ff = result.fields["target"], result.fields["fit"]
     side = 256
-    tsize = (side, int(side * tf.shape[0] / tf.shape[1]))
-    fsize = (side, int(side * ff.shape[0] / ff.shape[1]))
+    tsize, fsize = panel_sizes(tf.shape, ff.shape, side)
     coat = Image.fromarray(colourise(unit(ff), result.palette or GREY), "RGB").resize(fsize, Image.BICUBIC)
     panels = [_gray(tf, tsize), _gray(ff, fsize), loss_curve(result.history, (side, side)), coat]
     lines = _preview_lines(result, tf)
@@ -137,7 +145,7 @@ def preview(result, scale: int | None = None) -> Image.Image:
     canvas = Image.new("RGB", (4 * side + 20, height), "white")
     draw = ImageDraw.Draw(canvas)
     font = ImageFont.load_default()
-    for k, (p, title) in enumerate(zip(panels, ["target", f"fitted simulation ({result.family})", "loss",
+    for k, (p, title) in enumerate(zip(panels, ["target", f"fit ({result.family}), same scale", "loss",
                                                 "fit in the photo's colours"])):
         canvas.paste(p, (4 + k * (side + 4), 16))
         draw.text((4 + k * (side + 4), 2), title, fill="black", font=font)

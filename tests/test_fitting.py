@@ -303,9 +303,14 @@ def test_the_intervals_region_reports_a_lower_basin_than_the_fit(small_fit):
 
 
 def test_preview(small_fit, tmp_path):
+    from fitting._report import panel_sizes
+
     _, _, result = small_fit
     img = result.preview(tmp_path / "p.png")
     assert img.width > 3 * 200 and (tmp_path / "p.png").exists()
+    # the target and the fit are drawn at the same pixels per cell, the wider one 256 px wide
+    assert panel_sizes((118, 118), (64, 64), 256) == ((256, 256), (139, 139))
+    assert panel_sizes((32, 48), (64, 64), 256) == ((192, 128), (256, 256))
 
 
 def test_gradient_descent_loop_decreases_the_loss():
