@@ -77,6 +77,11 @@ class Family:
     # seed-to-seed spread of Euler's (benchmarks/results/fit_solvers.md)
     solver: object = None
     stride: int = 1
+    # whether the design places its points at the target's wavelength by linear stability
+    # where the prediction is valid (`fitting._predicted`); declared where
+    # `benchmarks/fit_placement.py` finds placed points land within 10% of it after one run
+    # at least as often as the scaling law's after two (benchmarks/results/fit_placement.md)
+    predicted: bool = False
 
     @property
     def oriented(self) -> bool:
@@ -128,7 +133,7 @@ def _leopard(shape):
 
 FAMILIES = {
     "turing": Family(
-        "turing", lambda shape: mj.Turing(), dict(_TURING), ("ratio", "scale", "lower_b"),
+        "turing", lambda shape: mj.Turing(), dict(_TURING), ("ratio", "scale", "lower_b"), predicted=True,
         description="the leopard paper's two-species Turing model with limits (eqs. 3-4)"),
     "anisotropic-turing": Family(
         "anisotropic-turing", lambda shape: mj.Turing(), {**_TURING, "angle": (-math.pi / 2, math.pi / 2, False)},

@@ -4,7 +4,10 @@
 2. Global stage: a coarse design (Latin hypercube or grid) over the parameter bounds,
    evaluated as one vmapped batch (design points x `design_seeds` seeds); each point is
    also moved along the family's length parameter to the target's wavelength (and an
-   oriented family's angle turned to the target's stripes). The target's wavelength is its
+   oriented family's angle turned to the target's stripes): placed there by linear
+   stability before its run where the family declares it and the prediction is valid
+   (`fitting._predicted`), moved by the measured wavelength and the family's scaling law
+   where not, or where the placed point settled off it. The target's wavelength is its
    pattern's (`fitting._verdict.target_wavelength`); a point off it (grid-scale, or more than
    20% away) scores DEGENERATE_PENALTY more, and a local search that ends off it keeps its
    start. Each fitted saturation limit is scanned across its bounds at the best point so
@@ -46,7 +49,8 @@ import morphojax as mj
 
 from ._limits import LIMIT_SCAN, scan_limits
 from ._result import FitResult
-from ._scale import moved_length, snap_threshold, snap_to_wavelength
+from ._predicted import applies, place
+from ._scale import SNAP_TOLERANCE, moved_length, snap_threshold, snap_to_wavelength
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
 from ._stats import distance, mean_stats, noise_of, residuals, texture_stats
@@ -276,8 +280,8 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
         result = _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, seed=seed,
                       design=design, n_design=n_design, rounds=rounds, keep=keep, method=method, max_steps=max_steps,
                       fallback=fallback, batch_size=batch_size, noise_seeds=noise_seeds, learning_rate=learning_rate,
-                      length_scale=length_scale, length_power=power, seeds=seeds,
-                      design_keys=keys[: min(int(design_seeds), int(seeds))], stripes=stripes, intervals=intervals,
+                      length_scale=length_scale, length_power=power, predicted=fam is not None and fam.predicted,
+                      seeds=seeds, design_keys=keys[: min(int(design_seeds), int(seeds))], stripes=stripes, intervals=intervals,
                       screen_only=screen_only)
     result.family = fam.name if fam is not None else (model if isinstance(model, str) else type(template).__name__)
     result.palette = None if screen_only else target.palette()
@@ -287,7 +291,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
 
 def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, *, seed, design, n_design, rounds,
          keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, length_power,
-         seeds, design_keys, stripes, intervals, screen_only=False):
+         predicted, seeds, design_keys, stripes, intervals, screen_only=False):
     # ---- global stage: a coarse design, then `rounds` finer designs around the best ------
     t0 = time.perf_counter()
 
@@ -312,12 +316,22 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     angle = names.index("angle") if stripes is not None else None
     samples = {}  # a screen's design points' seed fields, by their parameters
 
+    predictable = predicted and length is not None and applies(sim)  # the family declares it
+
     def evaluate(unit_points, move):
-        """Losses at the points; with `move`, each point is also moved to the target's
-        wavelength along the family's length parameter (wavelength ~ length **
-        length_power, the family's declaration) and, for an oriented family, turned to the
-        target's stripe direction (`stripes`), keeping the better of the two."""
-        thetas = np.asarray(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
+        """Losses at the points; with `move`, each point is first placed at the target's
+        wavelength by linear stability where its prediction is valid
+        (`fitting._predicted`), then moved to it along the family's length parameter by the
+        measured wavelength (wavelength ~ length ** length_power, the family's declaration)
+        and, for an oriented family, turned to the target's stripe direction (`stripes`),
+        keeping the better of the two. A placed point that settled within SNAP_TOLERANCE of
+        the target's wavelength, and a point the move leaves where it is (a bound, an
+        unknown wavelength), is not simulated again."""
+        thetas = np.array(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
+        placed = np.zeros(len(thetas), bool)
+        if move and predictable:
+            thetas, placed = place(sim, names, thetas, length, float(tstats["wavelength"]), space.low[length],
+                                   space.high[length])
         vals, lams = run_batch(thetas)
         if move and (length is not None or angle is not None):
             moved = thetas.copy()
@@ -329,10 +343,13 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
                 moved[:, angle] = np.clip(low + (stripes - low) % np.pi, low, space.high[angle])
             for value, theta in zip(vals, thetas):
                 rec(value, space.to_free(theta))
-            vals2, lams2 = run_batch(moved)
-            better = vals2 < vals
-            thetas = np.where(better[:, None], moved, thetas)
-            vals, lams = np.where(better, vals2, vals), np.where(better, lams2, lams)
+            landed = placed & (np.abs(lams / float(tstats["wavelength"]) - 1.0) <= SNAP_TOLERANCE)
+            again = np.flatnonzero(~landed & np.any(moved != thetas, axis=1))
+            if again.size:
+                vals2, lams2 = run_batch(moved[again])
+                better = again[vals2 < vals[again]]
+                kept = vals2 < vals[again]
+                thetas[better], vals[better], lams[better] = moved[better], vals2[kept], lams2[kept]
             unit_points = space.to_unit(thetas)
         for value, theta in zip(vals, thetas):
             rec(value, space.to_free(theta))
