@@ -2,7 +2,7 @@
 
 Each entry: the photo, the crop of its coat (crop A, the one fitted), a second crop of the same
 coat (crop B, never shown to the fit), whether dark pigment is the high species, and optional
-bounds. Every family is screened, the best two are fitted in full; results go to
+bounds. Every family is screened, the best `top` (3) are fitted in full; results go to
 benchmarks/results/photos/ (JSON, preview PNG, the fitted coat in the photo's colours) and a
 markdown table to benchmarks/results/fit_photos.md.
 

@@ -22,7 +22,7 @@ import time
 from functools import partial
 from pathlib import Path
 
-from ._auto import fit_auto
+from ._auto import TOP, fit_auto
 from ._fit import METHODS, fit_one
 from ._fit import refine as refine_fit
 from ._result import FitResult
@@ -101,7 +101,7 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         max_steps: int = DEFAULTS["max_steps"], fallback: bool = True, stats: StatsConfig | None = None,
         boundary: str = "wrap", species=None, batch_size: int = 8, noise_seeds: int = 8,
         learning_rate: float = 0.05, length_scale: str | None = "family", progress: bool | None = DEFAULTS["progress"],
-        intervals: bool = True, families=None, top: int = 2, screen: str = DEFAULTS["screen"],
+        intervals: bool = True, families=None, top: int = TOP, screen: str = DEFAULTS["screen"],
         refine: bool = DEFAULTS["refine"], simulator: Simulator | None = None) -> FitResult:
     """Fit parameters of `model` so its texture statistics match `target`'s.
 
@@ -140,7 +140,7 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
             terminals and notebooks and one log line per stage on stderr elsewhere.
         intervals: compute the Laplace credible intervals (`fitting.laplace_intervals`).
         families, top: for "auto", the families screened (default all) and how many are
-            fitted in full.
+            fitted in full (default `TOP`, 3).
         screen: for "auto", how the screen orders the families: "heldout" (default), the
             held-out distance of each family's best design point's samples, or "loss", the
             penalised training loss (`fitting._auto`).
