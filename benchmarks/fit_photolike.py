@@ -29,6 +29,7 @@ Protocol (fixed before any tuning of the fit against this suite):
     python benchmarks/fit_photolike.py [--only CASE ...] [--degradations none all ...]
         [--model auto|FAMILY] [--shape 64 64] [--tuning] [--top N]
     python benchmarks/fit_photolike.py --dry-run         # the whole path, tiny settings
+    python benchmarks/fit_photolike.py --wavelengths [--tuning]  # the target's wavelength, no fits
 """
 
 from __future__ import annotations
@@ -399,6 +400,42 @@ def table(rows, model: str, shape) -> str:
     return "\n".join(lines + [table_row(r) for r in rows]) + "\n"
 
 
+def wavelengths(names, tuning: bool, out: Path) -> None:
+    """The wavelength a fit aims at, measured on the degraded photo ("all") at the estimated
+    scale, against the clean coat's (on the fit's lattice): on the training half alone and on
+    the whole target (`fitting._verdict.target_wavelength`), with the clean photo's at the
+    same scale beside them (how much is the camera's). No fits."""
+    from fitting._verdict import split_target, target_wavelength
+
+    lines = ["# The wavelength the fit aims at (`benchmarks/fit_photolike.py --wavelengths`)", "",
+             f"{time.strftime('%Y-%m-%d')}, {'tuning' if tuning else 'report'} seeds, every camera fault at once. "
+             "Wavelengths in cells of the fit's lattice; errors against the clean coat's.", "",
+             "| case | clean coat | training half (error) | whole target (error) | training half, clean photo | "
+             "whole, clean photo |", "|---|---|---|---|---|---|"]
+    errors = {"half": [], "whole": []}
+    for name in names:
+        seed = case_seed(name, tuning)
+        try:
+            _, _, wavelength, photo = coat(name, tuning)
+            target = fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+        except ValueError as err:
+            lines.append(f"| {name} | {err} | | | | |")
+            continue
+        clean = fitting.load_target(degrade(photo, "none", seed), cell_pixels=target.cell_pixels, invert=True)
+        expected = wavelength * PHOTO_PIXELS / target.cell_pixels
+        half, whole = (target_wavelength(f) for f in (split_target(target.field)[0], target.field))
+        errors["half"].append(abs(half / expected - 1))
+        errors["whole"].append(abs(whole / expected - 1))
+        lines.append(f"| {name} | {expected:.2f} | {half:.2f} ({half / expected - 1:+.0%}) | {whole:.2f} "
+                     f"({whole / expected - 1:+.0%}) | {target_wavelength(split_target(clean.field)[0]):.2f} | "
+                     f"{target_wavelength(clean.field):.2f} |")
+    lines += ["", f"Mean absolute error: training half {np.mean(errors['half']):.1%}, whole target "
+              f"{np.mean(errors['whole']):.1%}; more than 10% off: {sum(e > 0.1 for e in errors['half'])} and "
+              f"{sum(e > 0.1 for e in errors['whole'])} of {len(errors['half'])}."]
+    out.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 def run_fits(names, degradations, model: str, shape, settings: dict, tuning: bool, out: Path,
              previews: bool = True) -> list:
     """Fit every (case, degradation); the JSON and the table are rewritten after each fit."""
@@ -426,7 +463,12 @@ def main():
     p.add_argument("--tuning", action="store_true", help="the tuning seeds (never the report's)")
     p.add_argument("--top", type=int, default=None,
                    help="families `auto` fits in full (default: fit's own); the report's name gains -topN")
+    p.add_argument("--wavelengths", action="store_true",
+                   help="the wavelength the fit aims at, half and whole target, against the clean coat's; no fits")
     args = p.parse_args()
+    if args.wavelengths:
+        wavelengths(args.only, args.tuning, RESULTS / f"fit_photolike-wavelengths{'-tuning' if args.tuning else ''}.md")
+        return
     if args.pictures:
         pictures(args.only, args.tuning)
         return

@@ -60,14 +60,15 @@ METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 DEGENERATE_PENALTY = 1e6  # added to a design point's loss when it is off the target's scale
 
 
-def target_stats(field, stats) -> dict:
+def target_stats(field, stats, wavelength: float | None = None) -> dict:
     """The target's statistics as the fit compares them: `texture_stats`, with the
     wavelength the pattern's (the statistics' soft argmax of a photo's spectrum is pulled
     toward hair and sensor noise, the cheetah: 6.5 cells against the spots' 9.1), the peak
     of its spectrum with the shading removed (`fitting._verdict.target_wavelength`, within
-    9% of the soft argmax on clean simulations)."""
+    9% of the soft argmax on clean simulations): `wavelength` where it was measured on more
+    than `field` (a training half carries its whole target's: `Target.wavelength`)."""
     tstats = jax.tree_util.tree_map(np.asarray, texture_stats(jnp.asarray(field, jnp.float32), stats))
-    pattern = target_wavelength(field)
+    pattern = target_wavelength(field) if wavelength is None else float(wavelength)
     if np.isfinite(pattern):
         tstats["wavelength"] = np.asarray(pattern, tstats["wavelength"].dtype)
     return tstats
@@ -269,7 +270,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     if rates:  # fitted growth rates: compare the window every point reaches, check the room
         sim = dataclasses.replace(sim, compare=sim.final_shape({names[i]: space.low[i] for i in rates}))
         sim.check_capacity({names[i]: space.high[i] for i in rates})
-    tstats = target_stats(target.field, stats)  # the pattern's scale, not the fur's
+    tstats = target_stats(target.field, stats, target.wavelength)  # the pattern's scale, not the fur's
     keys = jax.random.split(jax.random.key(seed + 1), seeds)
 
     label = stage_prefix + (fam.name if fam is not None else "fit")
@@ -592,7 +593,7 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
     if state is None:
         raise ValueError("refine needs a full fit's result (a screen's keeps no fit state)")
     t_start = time.perf_counter()
-    tstats = target_stats(target.field, state.stats)
+    tstats = target_stats(target.field, state.stats, target.wavelength)
     with _recording(progress, f"refine {result.family}", 2 * max(int(state.settings["max_steps"]), 1)) as rec:
         rec.stage = "refine"
         start = state.space.to_free(jnp.asarray([result.params[n] for n in state.space.names], jnp.float32))
