@@ -47,7 +47,7 @@ SHAPE = (64, 64)
 TARGETS = (8.0, 10.0, 13.0)
 DESIGN_SEED = 11
 SEEDS = 2
-MODEL_FAMILIES = [name for name in ("turing", "bard", "gray-scott", "reinforcement")]
+MODEL_FAMILIES = ["turing", "bard", "gray-scott", "reinforcement"]  # Young and the leopard have no model template
 
 
 def family_simulator(name: str) -> tuple[Simulator, list, ParamSpace]:
