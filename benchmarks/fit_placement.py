@@ -47,7 +47,7 @@ SHAPE = (64, 64)
 TARGETS = (8.0, 10.0, 13.0)
 DESIGN_SEED = 11
 SEEDS = 2
-MODEL_FAMILIES = ["turing", "bard", "gray-scott", "reinforcement"]  # Young and the leopard have no model template
+MODEL_FAMILIES = ["turing", "bard", "gray-scott", "reinforcement"]  # the others: no model template (Young, leopard) or a polarised lattice
 
 
 def family_simulator(name: str) -> tuple[Simulator, list, ParamSpace]:
