@@ -16,7 +16,7 @@ import morphojax as mj
 import morphojax.cells as mc
 from morphojax.cells._neighbours import find_neighbours
 
-from cells_oracle import from_cells, neighbours as brute_neighbours, step as oracle_step
+from cells_oracle import displacement, from_cells, neighbours as brute_neighbours, step as oracle_step
 
 BARD = mj.Bard(alpha=16.0, beta=12.0, sp=0.01)
 
@@ -107,20 +107,31 @@ def test_uniform_draws_the_bits_of_jax_random():
 
 
 def test_first_hits_are_the_first_true_columns():
-    """A patch's rows (`_first_hits`, a partial sort): each row's first `slots` True
-    columns in order, then the row length; overflow when a row has more."""
+    """A patch's rows (`_first_hits`: a partial sort of the blocks that hold hits, then of
+    their columns): each row's first `slots` True columns in order, then the row length;
+    overflow when a row has more. Long rows too, with hits in every block, exactly `slots`
+    hits spread over the row, and one more."""
     from morphojax.cells._neighbours import _first_hits
 
     rng = np.random.default_rng(2)
-    for density, slots, n in ((0.01, 6, 300), (0.05, 6, 300), (0.0, 3, 300), (0.5, 6, 4)):
+    cases = ((0.01, 6, 300), (0.05, 6, 300), (0.0, 3, 300), (0.5, 6, 4), (0.003, 18, 6144), (0.01, 18, 5000),
+             (0.2, 8, 1000), (0.002, 4, 4097), (1.0, 18, 2000))
+    for density, slots, n in cases:
         hit = rng.random((9, n)) < density
-        index, overflow = _first_hits(jnp.asarray(hit), slots)
-        want = np.full((9, slots), n)
-        for r, row in enumerate(hit):
-            found = np.flatnonzero(row)[:slots]
-            want[r, :len(found)] = found
-        assert np.array_equal(np.asarray(index), want)
-        assert bool(overflow) == bool((hit.sum(axis=1) > slots).any())
+        if n > 1000:
+            hit[0] = False
+            hit[0, ::32] = True  # a hit in every block
+            for row, hits in ((1, slots), (2, slots + 1)):  # as many hits as slots, spread; one more
+                hit[row] = False
+                hit[row, rng.choice(n, hits, replace=False)] = True
+        for rows in (hit, hit & (np.cumsum(hit, axis=1) <= slots)):  # with and without an overflowing row
+            index, overflow = _first_hits(jnp.asarray(rows), slots)
+            want = np.full((9, slots), n)
+            for r, row in enumerate(rows):
+                found = np.flatnonzero(row)[:slots]
+                want[r, :len(found)] = found
+            assert np.array_equal(np.asarray(index), want)
+            assert bool(overflow) == bool((rows.sum(axis=1) > slots).any())
 
 
 def test_patch_sizes_change_no_bit(monkeypatch):
@@ -364,6 +375,39 @@ def test_collisions_relax_overlaps_and_spare_fixed_cells():
     np.fill_diagonal(gaps, np.inf)
     assert gaps.min() > 2.0 - 0.05
     assert not np.allclose(moved[3:], np.asarray(cells.position)[3:])
+
+
+@pytest.mark.parametrize("period", [None, (16.0, 14.0)])
+def test_contacts_carry_the_collisions_sums_of_eq_4_9(period):
+    """The collisions' sums are made with the contacts (`Contacts.push`): per cell
+    sum_j (0.25 - 0.5 / |d_j|) d_j over the cells at 0 < |d_j| < 2 (minimum images on a
+    torus), against a sum over every pair; a coincident pair pushes neither cell but counts
+    as overlapping; a square grid of spacing 2 (touching, not overlapping) does not."""
+    from morphojax.cells._contacts import contacts
+    from morphojax.cells._neighbours import Search
+
+    rng = np.random.default_rng(4)
+    pos = rng.uniform(-6.5, 6.5, size=(40, 2))
+    pos[7] = pos[3]  # coincident
+    cells = mc.make_cells(("R",), pos).with_capacity(48)
+    search = Search(radius=3.3, skin=0.3, max_neighbours=40, bucket_size=40, table_size=256, period=period)
+    touch = contacts(cells, search.build(cells.position, cells.count), 3.0)
+    want = np.zeros((40, 2))
+    for i in range(40):
+        for j in range(40):
+            d = displacement(pos, i, j, period)
+            gap = np.hypot(*d)
+            if i != j and 0 < gap < 2:
+                want[i] += (0.25 - 0.5 / gap) * d
+    np.testing.assert_allclose(np.asarray(touch.push)[:40], want, atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(touch.push)[40:], 0.0)
+    assert np.abs(want).max() > 0.1 and bool(touch.overlapping)
+    apart = mc.make_cells(("R",), pos[[3, 7]] + [[0.0, 0.0], [0.0, 0.0]])  # only the coincident pair
+    touch = contacts(apart, search.build(apart.position, apart.count), 3.0)
+    assert bool(touch.overlapping) and np.abs(np.asarray(touch.push)).max() == 0.0
+    grid = mc.cell_grid((6, 5), ("R",))
+    touch = contacts(grid, search.build(grid.position, grid.count), 3.0)
+    assert not bool(touch.overlapping) and np.abs(np.asarray(touch.push)).max() == 0.0
 
 
 def test_packed_domain_holds_cells_inside_its_square():

@@ -34,7 +34,6 @@ from ._rules import Rule
 from ._space import clamp_positions
 from ._state import Cells
 
-CONTACT = 2.0  # unit-radius cells overlap below this distance (eq. 4.9)
 
 
 class Settings(eqx.Module):
@@ -82,11 +81,9 @@ def diffusion_change(cells: Cells, touch: Contacts, dt: Array) -> Array:
 
 
 def collision_offset(cells: Cells, touch: Contacts) -> Array:
-    """Eq. 4.9: o_i = sum_j (0.25 - 0.5 / |d_j|) d_j for 0 < |d_j| < 2; zero for fixed cells."""
-    overlap = touch.near & (touch.distance < CONTACT) & ((touch.dx != 0) | (touch.dy != 0))
-    weight = jnp.where(overlap, 0.25 - 0.5 / touch.distance, 0.0)
-    offset = jnp.stack([jnp.sum(weight * touch.dx, axis=1), jnp.sum(weight * touch.dy, axis=1)], axis=1)
-    return jnp.where((cells.fixed | ~cells.alive)[:, None], 0.0, offset)
+    """Eq. 4.9: o_i = sum_j (0.25 - 0.5 / |d_j|) d_j for 0 < |d_j| < 2; zero for fixed cells
+    (the sums are `touch.push`, made with the contacts)."""
+    return jnp.where((cells.fixed | ~cells.alive)[:, None], 0.0, touch.push)
 
 
 # ---- division -------------------------------------------------------------------------
@@ -176,8 +173,7 @@ def step(cells: Cells, neighbours: NeighbourList, touch: Contacts, rules: tuple[
     concentration = cells.concentration + fx.conc + diffusion_change(cells, touch, dt)
     concentration = jnp.where(alive, jnp.clip(concentration, cells.lower[:, None], cells.upper[:, None]), 0.0)
     rates = jnp.where(alive, jnp.maximum(cells.diffusion + fx.rates, 0.0), 0.0)
-    overlapping = jnp.any(touch.near & (touch.distance < CONTACT))
-    offset = jax.lax.cond(overlapping, collision_offset, lambda c, t: jnp.zeros_like(c.position), cells, touch)
+    offset = jax.lax.cond(touch.overlapping, collision_offset, lambda c, t: jnp.zeros_like(c.position), cells, touch)
     position = clamp_positions(settings.domain, cells.position + offset, cells.count)
     position = jnp.where(alive[:, None], position, 0.0)
     finite = jnp.all(jnp.isfinite(concentration)) & jnp.all(jnp.isfinite(position))
