@@ -22,7 +22,7 @@ reinforcement, the leopard experiment, anisotropic Turing) the point is moved by
 before.
 
 The wavelength is the continuum's: the fastest of `Dispersion.curve`'s growth rates over a
-grid of wavenumbers (`WAVENUMBERS` across [2 pi / (4 x the longer side), pi], 1% apart), so it
+grid of wavenumbers (`WAVENUMBER_STEPS` across [2 pi / (4 x the longer side), pi], at most 1% apart), so it
 moves smoothly with the parameters where the lattice's own modes (`fastest_wavelength`) jump
 from one discrete wave to the next (64 / 6 to 64 / 7 cells: 15%). The nine-point stencil
 shortens waves of 10 cells by a few percent against the continuum; the settled pattern's
@@ -49,7 +49,7 @@ import numpy as np
 import morphojax as mj
 
 PROBE = 2.0  # the local power is measured between a length and PROBE times it
-WAVENUMBER_STEPS = 600  # log-spaced: 1% apart across the grid's 400-fold range
+WAVENUMBER_STEPS = 600  # log-spaced over 2 x the longer side's range: at most 1% apart up to 200 cells
 SECANT_STEPS = 2
 
 
