@@ -260,7 +260,7 @@ def _first_hits(hit: Array, slots: int, block: int = HIT_BLOCK) -> tuple[Array, 
     pad = -n % block
     blocks = jnp.pad(hit, ((0, 0), (0, pad))).reshape(rows, -1, block)
     count = blocks.shape[1]
-    held, chosen = _first_of(jnp.any(blocks, axis=2), jnp.arange(count), k - 1, count, keep_last=True)
+    _, chosen = _first_of(jnp.any(blocks, axis=2), jnp.arange(count), k - 1, count, keep_last=True)
     safe = jnp.minimum(chosen, count - 1)                                              # (rows, k) blocks
     within = jnp.take_along_axis(blocks, safe[:, :, None], axis=1) & (chosen < count)[:, :, None]
     column = (safe[:, :, None] * block + jnp.arange(block)).reshape(rows, -1)          # increasing in each row
@@ -272,7 +272,7 @@ def _first_of(hit: Array, column: Array, slots: int, fill: int, keep_last: bool 
     """(overflow, index) when `keep_last`, else (index, overflow): per row of `hit`, the
     `column`s (increasing along each row) of its first `slots` True entries, then `fill`
     (with `keep_last`, the first `slots` + 1); overflow: a row had more than `slots`."""
-    rows, n = hit.shape
+    n = hit.shape[1]
     k = min(slots + 1, n)
     score = jnp.where(hit, (n - jnp.arange(n)).astype(jnp.float32), 0.0)
     # rows with fewer hits: all of them, then zeros; the barrier keeps XLA from folding the
