@@ -13,11 +13,14 @@ a point to the target's wavelength along the family's length parameter:
   `length_power`, from the measured wavelength) and simulate again: two runs a point;
 - `placed`: where the prediction is valid at the point, place it at the target's predicted
   wavelength (`fitting._predicted.place`) and simulate once; where it then settled more than
-  `SNAP_TOLERANCE` away, move it by the law and simulate again (the fit's rule).
+  `LANDED` (5%) away, or formed no measurable pattern, move it by the law and simulate again
+  (the fit's rule).
 
 Reported over the points whose prediction is valid (elsewhere the fit moves by the law as
-before): the share within 10% and 20% of the target's wavelength after the placed point's
-first run, after each way's last run, and the runs a point took. A family is declared
+before): how many (and how many distinct drawn points: every target draws the same ones), the
+share within 10% and 20% of the target's wavelength after the placed point's first run (a run
+with no measurable pattern counts as a miss, and is counted), after each way's last run, and
+the runs a placed point took. A family is declared
 `predicted` when its placed points land within 10% at least as often after one run as the
 law's after two.
 
@@ -36,8 +39,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from fitting._families import FAMILIES
-from fitting._predicted import applies, place
-from fitting._scale import SNAP_TOLERANCE, moved_length
+from fitting._predicted import LANDED, applies, place
+from fitting._scale import moved_length
 from fitting._simulator import Simulator
 from fitting._space import ParamSpace
 from fitting._verdict import wavelength_of
@@ -86,10 +89,10 @@ def measure(name: str, points: int) -> dict:
         once = wavelengths(placed)
         again = placed.copy()
         again[:, length] = moved_length(placed[:, length], once, target, fam.length_power, low, high)
-        redo = np.abs(once / target - 1) > SNAP_TOLERANCE
+        redo = ~(np.abs(once / target - 1) <= LANDED)  # off, or no measurable pattern (NaN)
         twice = np.where(redo, wavelengths(again), once)
         for i in range(points):
-            rows.append({"target": target, "theta": drawn[i].tolist(), "valid": bool(valid[i]),
+            rows.append({"target": target, "point": i, "theta": drawn[i].tolist(), "valid": bool(valid[i]),
                          "placed": placed[i].tolist(), "first": first[i], "law": law[i], "once": once[i],
                          "twice": twice[i], "redo": bool(redo[i])})
         print(f"{name} target {target}: {valid.sum()} valid, {time.perf_counter() - t0:.0f} s", flush=True)
@@ -105,12 +108,15 @@ def summarise(result: dict) -> list[str]:
     rows = [r for r in result["rows"] if r["valid"]]
     n_all = len(result["rows"])
     if not rows:
-        return [f"| {result['family']} | 0 of {n_all} | - | - | - | - | - | no (never valid) |"]
+        return [f"| {result['family']} | 0 of {n_all} | - | - | - | - | - | - | no (never valid) |"]
     t = [r["target"] for r in rows]
     once10, law10 = share([r["once"] for r in rows], t, 0.1), share([r["law"] for r in rows], t, 0.1)
     runs = 1 + np.mean([r["redo"] for r in rows])
+    flat = sum(not np.isfinite(r["once"]) for r in rows)
+    distinct = len({r["point"] for r in rows})
     verdict = "yes" if once10 >= law10 else "no"
-    return [f"| {result['family']} | {len(rows)} of {n_all} | {once10:.0%} / {share([r['once'] for r in rows], t, 0.2):.0%} "
+    return [f"| {result['family']} | {len(rows)} of {n_all} ({distinct} distinct) | {flat} "
+            f"| {once10:.0%} / {share([r['once'] for r in rows], t, 0.2):.0%} "
             f"| {share([r['twice'] for r in rows], t, 0.1):.0%} | {law10:.0%} / {share([r['law'] for r in rows], t, 0.2):.0%} "
             f"| {runs:.2f} | 2 | {verdict} |"]
 
@@ -129,9 +135,10 @@ def main(argv=None):
              f"({time.strftime('%Y-%m-%d')}, {jax.devices()[0].platform}): {SHAPE[0]}x{SHAPE[1]}, targets "
              f"{', '.join(f'{t:g}' for t in TARGETS)} cells, {args.points} points each, {SEEDS} seeds; see the "
              "script's docstring. Shares are of the points whose prediction is valid.", "",
-             "| family | valid points | placed, one run: within 10% / 20% | placed, then moved where off: within "
-             "10% | law (two runs): within 10% / 20% | runs a point, placed | runs a point, law | predicted |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| family | valid points | placed runs with no measurable pattern | placed, one run: within 10% / 20% "
+             "| placed, then moved where off: within 10% | law (two runs): within 10% / 20% "
+             "| runs a placed point | runs a point, law | predicted |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         lines += summarise(r)
     out.write_text("\n".join(lines) + "\n")

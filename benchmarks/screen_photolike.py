@@ -6,7 +6,7 @@ best point's samples (`fitting._auto.screen`). Two rules order the families from
 `heldout`, the samples' texture distance to the held-out half (`fitting._verdict`), and
 `loss`, the penalised training loss (the rule before). The `top` families go on to full
 fits, so what matters is the rank of the family that made the coat: recorded per case with
-the right family's rank under each rule and whether it is among the top two.
+the right family's rank under each rule and whether it is among the `TOP` fitted in full.
 
 The cases, their coats and their camera faults are `fit_photolike.py`'s. Developers decide
 on the tuning seeds (the default here); `--report` runs the report seeds, which are only
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import fitting
-from fitting._auto import families_for, screen
+from fitting._auto import TOP, families_for, screen
 from fitting._stats import StatsConfig
 from fitting._verdict import heldout_distance, split_target
 
@@ -77,14 +77,14 @@ def table(results: list, tuning: bool) -> list[str]:
         lines.append(f"| {r['case']} | {r['degradation']} | {r['family']} | {r['ranks']['heldout']} | "
                      f"{r['ranks']['loss']} | {len(r['rows'])} families, {r['seconds']:.0f} s |")
     n = len(results)
-    top2 = {rule: sum(1 for r in results if r["ranks"][rule] is not None and r["ranks"][rule] <= 2)
-            for rule in ("heldout", "loss")}
+    fitted = {rule: sum(1 for r in results if r["ranks"][rule] is not None and r["ranks"][rule] <= TOP)
+              for rule in ("heldout", "loss")}
     first = {rule: sum(1 for r in results if r["ranks"][rule] == 1) for rule in ("heldout", "loss")}
     seeds = "tuning" if tuning else "report"
     skipped = [f"{r['case']} ({r['error']})" for r in errors]
     return lines + [""] + ([f"Not screened: {'; '.join(skipped)}.", ""] if skipped else []) + [f"On the {seeds} seeds: the right family first on {first['heldout']} of {n} with the "
-                        f"held-out rule and {first['loss']} of {n} with the training loss; among the two fitted in "
-                        f"full on {top2['heldout']} and {top2['loss']} of {n}.", ""]
+                        f"held-out rule and {first['loss']} of {n} with the training loss; among the {TOP} fitted in "
+                        f"full on {fitted['heldout']} and {fitted['loss']} of {n}.", ""]
 
 
 def main(argv=None):

@@ -70,8 +70,8 @@ STRIPE_ANGLE = math.pi / 8  # and a direction within this of the target's (radia
 
 # families fitted in full after the screen: on the photo-like suite's tuning seeds the screen
 # ranks the right family third in 3 of 8 cases, and fitting three in full returned the right
-# family in 6 of 8 (benchmarks/results/fit_photolike-top3-tuning.md); a third full fit costs
-# about a third more time
+# family in 6 of 8 (benchmarks/results/fit_photolike-top3-tuning.md); three full fits instead of
+# two are half as much again of the full fits' time
 TOP = 3
 
 

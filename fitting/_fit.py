@@ -48,9 +48,9 @@ import numpy as np
 import morphojax as mj
 
 from ._limits import LIMIT_SCAN, scan_limits
+from ._predicted import LANDED, applies, place
 from ._result import FitResult
-from ._predicted import applies, place
-from ._scale import SNAP_TOLERANCE, moved_length, snap_threshold, snap_to_wavelength
+from ._scale import moved_length, snap_threshold, snap_to_wavelength
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
 from ._stats import distance, mean_stats, noise_of, residuals, texture_stats
@@ -290,6 +290,16 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
     return result
 
 
+def keep_better(thetas, vals, lams, rows, moved, moved_vals, moved_lams):
+    """Points, losses and wavelengths with rows `rows` replaced by their moved points where
+    the move scored lower (ties keep the point); new arrays."""
+    thetas, vals, lams = np.array(thetas), np.array(vals), np.array(lams)
+    better = np.asarray(moved_vals) < vals[rows]
+    thetas[rows[better]], vals[rows[better]], lams[rows[better]] = (
+        np.asarray(moved)[better], np.asarray(moved_vals)[better], np.asarray(moved_lams)[better])
+    return thetas, vals, lams
+
+
 def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, *, seed, design, n_design, rounds,
          keep, method, max_steps, fallback, batch_size, noise_seeds, learning_rate, length_scale, length_power,
          predicted, seeds, design_keys, stripes, intervals, screen_only=False):
@@ -317,7 +327,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     angle = names.index("angle") if stripes is not None else None
     samples = {}  # a screen's design points' seed fields, by their parameters
 
-    predictable = predicted and length is not None and applies(sim)  # the family declares it
+    # the family declares it, fits its length, has a dispersion relation (`applies`), and the
+    # design is a hypercube (a grid's levels along the length would all be placed at one value)
+    predictable = predicted and length is not None and design != "grid" and applies(sim)
 
     def evaluate(unit_points, move):
         """Losses at the points; with `move`, each point is first placed at the target's
@@ -325,9 +337,9 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         (`fitting._predicted`), then moved to it along the family's length parameter by the
         measured wavelength (wavelength ~ length ** length_power, the family's declaration)
         and, for an oriented family, turned to the target's stripe direction (`stripes`),
-        keeping the better of the two. A placed point that settled within SNAP_TOLERANCE of
-        the target's wavelength, and a point the move leaves where it is (a bound, an
-        unknown wavelength), is not simulated again."""
+        keeping the better of the two. A placed point that settled within LANDED of the
+        target's wavelength, and a point the move leaves where it is (a bound, an unknown
+        wavelength), is not simulated again."""
         thetas = np.array(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
         placed = np.zeros(len(thetas), bool)
         if move and predictable:
@@ -344,13 +356,10 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
                 moved[:, angle] = np.clip(low + (stripes - low) % np.pi, low, space.high[angle])
             for value, theta in zip(vals, thetas):
                 rec(value, space.to_free(theta))
-            landed = placed & (np.abs(lams / float(tstats["wavelength"]) - 1.0) <= SNAP_TOLERANCE)
+            landed = placed & (np.abs(lams / float(tstats["wavelength"]) - 1.0) <= LANDED)
             again = np.flatnonzero(~landed & np.any(moved != thetas, axis=1))
             if again.size:
-                vals2, lams2 = run_batch(moved[again])
-                better = again[vals2 < vals[again]]
-                kept = vals2 < vals[again]
-                thetas[better], vals[better], lams[better] = moved[better], vals2[kept], lams2[kept]
+                thetas, vals, lams = keep_better(thetas, vals, lams, again, moved[again], *run_batch(moved[again]))
             unit_points = space.to_unit(thetas)
         for value, theta in zip(vals, thetas):
             rec(value, space.to_free(theta))

@@ -30,7 +30,8 @@ from ._result import FitResult
 from ._simulator import Simulator
 from ._stats import StatsConfig
 from ._target import Target, load_target
-from ._verdict import degenerate, heldout_distance, judge, split_target, target_wavelength, verdict_text
+from ._verdict import (degenerate, heldout_distance, judge, split_target, target_wavelength,
+                       verdict_text)
 
 # One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
 DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
@@ -170,9 +171,10 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     train, heldout, apart = split_target(target.field)
     # the training half aims at the whole target's wavelength: the one the verdict judges its
     # coat by (`fitting._verdict.judge`) and the resolution estimate read from the whole crop;
-    # a half alone read it 8-35% off on 3 of the 8 tuning coats of the photo-like suite
-    training = dataclasses.replace(target, field=train, wavelength=target_wavelength(target.field)) if apart \
-        else target
+    # a half alone read the clean coat's 11-35% off on 3 of the 8 tuning coats of the
+    # photo-like suite (benchmarks/results/fit_photolike-wavelengths-tuning.md)
+    whole_wavelength = target.wavelength if target.wavelength is not None else target_wavelength(target.field)
+    training = dataclasses.replace(target, field=train, wavelength=whole_wavelength) if apart else target
     # a split target's training fit is judged on the held-out half, then refined on the
     # whole (`_refined`), which computes the intervals: the training fit need not
     refined = refine and apart

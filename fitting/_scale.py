@@ -3,7 +3,9 @@
 A family declares the parameter that sets its pattern's size and how the wavelength follows
 it, wavelength ~ length ** power (`Family.length`, `Family.length_power`). Two stages use it:
 
-- the global design moves every design point to the target's wavelength (`moved_length`);
+- the global design moves every design point to the target's wavelength (`moved_length`;
+  where linear stability placed the point there first, `fitting._predicted`, only if it
+  settled off it);
 - after the local search, the best point is moved to the target's wavelength when the move
   costs no more loss than the fit's own uncertainty allows (`snap_to_wavelength`).
 

@@ -49,9 +49,10 @@ class Target:
     quantiles: tuple = (0.02, 0.98)
     rgb: np.ndarray | None = None  # the crop's colours (at most 200 px a side), for the palette
     values: np.ndarray | None = None  # the normalised channel at the resolution of `rgb`
-    # the pattern's wavelength (cells) where it was measured on more than `field`: a training
-    # half carries its whole target's (`fitting.fit`), the one the verdict judges by; None:
-    # measured on `field` (`fitting._verdict.target_wavelength`)
+    # the pattern's wavelength (cells) the fit aims at, where it is not `field`'s own: a
+    # training half carries its whole target's (`fitting.fit` sets it), the one the verdict
+    # judges by; a user's value is kept. None: measured on `field`
+    # (`fitting._verdict.target_wavelength`)
     wavelength: float | None = None
 
     def palette(self, k: int = 3) -> list | None:

@@ -9,6 +9,7 @@ import pytest
 
 import fitting
 import morphojax as mj
+from fitting import _fit as fit_module
 from fitting import _verdict as verdict
 
 
@@ -127,25 +128,20 @@ def test_a_fit_that_can_only_reach_grid_scale_is_rejected_and_logged(capsys):
 
 def test_the_training_half_aims_at_the_whole_targets_wavelength(monkeypatch):
     """A split target's training fit aims at the wavelength the verdict judges by (the
-    whole's), not its half's: two halves of different scales make the difference plain."""
-    from fitting import _pipeline
-
+    whole's), not its half's: two halves of different scales make the difference plain. The
+    fit's own `target_stats` is watched, so a stage that dropped the wavelength would show."""
     whole = np.concatenate([band_texture((72, 72), 7.0, 0), band_texture((72, 72), 11.0, 1)], axis=1)
     seen = {}
+    real = fit_module.target_stats
 
-    def fake_fit_one(target, *args, **kwargs):
-        seen["target"] = target
-        raise RuntimeError("stop after the target")
+    def watched(field, stats, wavelength=None):
+        seen["field"], seen["stats"] = field, real(field, stats, wavelength)
+        raise RuntimeError("stop after the target's statistics")
 
-    monkeypatch.setattr(_pipeline, "fit_one", fake_fit_one)
-    with pytest.raises(RuntimeError, match="stop after the target"):
+    monkeypatch.setattr(fit_module, "target_stats", watched)
+    with pytest.raises(RuntimeError, match="stop after the target's statistics"):
         fitting.fit(whole, model="turing", progress=False)
-    train = seen["target"]
-    assert train.field.shape == (72, 72)  # the training half
-    lam_whole, lam_half = verdict.target_wavelength(whole), verdict.target_wavelength(train.field)
+    assert seen["field"].shape == (72, 72)  # the training half
+    lam_whole, lam_half = verdict.target_wavelength(whole), verdict.target_wavelength(seen["field"])
     assert abs(lam_half / lam_whole - 1) > 0.1  # the halves differ: the test can tell
-    assert train.wavelength == pytest.approx(lam_whole)
-    from fitting._fit import target_stats
-
-    stats = target_stats(train.field, fitting.StatsConfig(), train.wavelength)
-    assert float(stats["wavelength"]) == pytest.approx(lam_whole, rel=1e-6)
+    assert float(seen["stats"]["wavelength"]) == pytest.approx(lam_whole, rel=1e-6)
