@@ -392,10 +392,11 @@ def table(rows, model: str, shape) -> str:
                          f"{len(sub)} | {sum(bool(r.get('convincing')) for r in sub)}/{len(sub)} |")
     lines += ["", "Parameter errors are relative (angle: radians, modulo pi); px per cell: the scale `load_target` "
                   "estimated, and its error against the clean coat's (its wavelength over 10 cells); wavelengths in "
-                  "cells of the fit's lattice: the clean coat's, the one the fit measured on the part of the photo it "
-                  "sees (`fitting._verdict.target_wavelength`), the fitted coat's; held-out: distance / floor / noise.", "",
+                  "cells of the fit's lattice: the clean coat's, the one the fit aimed at (`fitting._verdict."
+                  "target_wavelength` of the whole target since 4e8e731, of the training part before), the fitted "
+                  "coat's; held-out: distance / floor / noise.", "",
               "| case | degradation | family | fitted family | parameter errors | px per cell (scale error) "
-              "| wavelength expected / training part / fitted | convincing | held-out | time (s) |",
+              "| wavelength expected / aimed at / fitted | convincing | held-out | time (s) |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     return "\n".join(lines + [table_row(r) for r in rows]) + "\n"
 
