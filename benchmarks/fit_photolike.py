@@ -442,7 +442,11 @@ def run_fits(names, degradations, model: str, shape, settings: dict, tuning: boo
     """Fit every (case, degradation); the JSON and the table are rewritten after each fit."""
     rows = []
     for name in names:
-        seed, _, wavelength, photo = coat(name, tuning)
+        try:
+            seed, _, wavelength, photo = coat(name, tuning)
+        except ValueError as err:  # a case with no coat on these seeds: said, and the run goes on
+            print(f"{name}: {err}", file=sys.stderr)
+            continue
         for which in degradations:
             row = fit_one(name, which, seed, wavelength, photo, model, shape, settings, previews)
             rows.append(row)
