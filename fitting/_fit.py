@@ -143,16 +143,17 @@ def _seed_run(sim, space, cfg, theta, keys):
     return jax.vmap(lambda f: texture_stats(f, cfg))(fields), fields
 
 
-def _mean_at(sim, space, cfg, theta, keys) -> dict:
-    per_seed, _ = _seed_run(sim, space, cfg, jnp.asarray(theta, jnp.float32), keys)
-    return jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
-
-
 def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
-    """The local stage's (loss, wavelength) at z, through `_seed_run` (no separate compiled program)."""
+    """The local stage's (loss, wavelength) at z, through `_seed_run` (no separate compiled
+    program). The wavelength is the verdict's (the median over seeds of each field's spectral
+    peak, `wavelength_of`), not the loss's soft-argmax: the guard that keeps a search on the
+    target's scale then judges it as the snap and the degenerate check do. With the soft-argmax,
+    Bard's refinement ended 18-20% long by the verdict's measure on both seed sets of the
+    photo-like suite (benchmarks/results/fit_photolike*.md) while the guard saw it on scale."""
     theta = space.from_free(jnp.asarray(z, jnp.float32))
-    mean = _mean_at(sim, space, cfg, theta, keys)
-    return float(distance(mean, tstats, cfg, noise)), float(mean["wavelength"])
+    per_seed, fields = _seed_run(sim, space, cfg, theta, keys)
+    mean = jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
+    return float(distance(mean, tstats, cfg, noise)), float(np.nanmedian([wavelength_of(f) for f in np.asarray(fields)]))
 
 
 
@@ -580,7 +581,8 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
     return FitResult(
         params=params, model=sim.build(params), loss=float(best_loss), noise_floor=floor, history=history,
         timings=timings, stats={"target": _tolist(tstats), "fit": _tolist(fit_stats), "noise": _tolist(noise)},
-        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample, "samples": samples},
+        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample, "samples": samples,
+                                          "fit_seeds": run_at(theta_best)[1]},
         config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
         correlated=correlated, resume=state,
     )

@@ -21,7 +21,8 @@ class FitResult:
     parameters; history: list of {stage, start, evaluation, loss}; timings: seconds per stage;
     stats: target and fit statistics; report: region statistics (spot counts, areas,
     eccentricity, Euler number); design: the global stage's points and losses; fields: the
-    target field and one simulated field of the fit, for previews.
+    target field and one simulated field of the fit ("fit"), for previews; a full fit's
+    also "samples" (the noise floor's seeds) and "fit_seeds" (the seeds the loss averages).
     """
 
     params: dict

@@ -283,6 +283,50 @@ def test_a_split_target_is_judged_on_its_held_out_half_and_refined_on_the_whole(
     json.dumps(refined.to_json(), allow_nan=False)
 
 
+def test_the_local_stage_judges_scale_as_the_verdict_does(small_fit):
+    """The local search's guard reads a point's wavelength as the verdict and the snap do:
+    the median over the loss's seeds of each field's spectral peak (`wavelength_of`), not the
+    loss's soft-argmax; and a full fit keeps those seeds' fields."""
+    _, _, result = small_fit
+    state = result.resume
+    tstats = {k: np.asarray(v, np.float32) for k, v in result.stats["target"].items()}
+    theta = np.array([result.params["ratio"], result.params["scale"]], np.float32)
+    _, lam = fitting._fit._loss_of(state.sim, state.space, state.stats, state.space.to_free(theta), state.keys,
+                                   tstats, state.noise)
+    _, fields = fitting._fit._seed_run(state.sim, state.space, state.stats, theta, state.keys)
+    assert lam == pytest.approx(float(np.median([fitting._verdict.wavelength_of(f) for f in np.asarray(fields)])))
+    assert np.asarray(result.fields["fit_seeds"]).shape == (2, 32, 32)
+    assert np.array_equal(np.asarray(result.fields["fit_seeds"]), np.asarray(fields))  # the same seeds, the fit's point
+
+
+def test_a_refined_coat_off_the_targets_scale_on_the_losss_seeds_is_not_returned(split_fits, monkeypatch):
+    """`_refined` keeps the training fit when the refined coat is off the target's wavelength
+    on either of its seed sets, the noise floor's or the loss's."""
+    import dataclasses
+
+    from fitting import _pipeline
+
+    field, refined, training = split_fits
+    lam = training.heldout["target_wavelength"]
+    cols = np.arange(64)
+
+    def stripes(wavelength, n):  # vertical stripes of a known wavelength on the fit's 32x32 lattice
+        return np.stack([np.tile((np.sin(2 * np.pi * cols[:32] / wavelength + k) > 0).astype(float), (32, 1))
+                         for k in range(n)])
+
+    on, off = stripes(lam, 4), stripes(1.5 * lam, 2)
+    assert fitting._verdict.degenerate(on, lam) is None and fitting._verdict.degenerate(off, lam) is not None
+    target = fitting.load_target(field, cell_pixels=1.0)
+    for samples, seeds, kept in ((on, on[:2], False), (on, off, True), (off, on[:2], True)):
+        made = dataclasses.replace(refined, fields={**refined.fields, "samples": samples, "fit_seeds": seeds},
+                                   config=dict(refined.config))
+        monkeypatch.setattr(_pipeline, "refine_fit", lambda *a, made=made, **k: made)
+        base = dataclasses.replace(training, config=dict(training.config))
+        out = _pipeline._refined(base, target, intervals=False, mode=None)
+        assert (out is base) == kept
+        assert ("kept_training_fit" in out.config.get("refined", {})) == kept
+
+
 def test_the_intervals_region_reports_a_lower_basin_than_the_fit(small_fit):
     """Started away from the fit (scale 40% off), the region's walk finds points below the
     start's loss, and says so (the fit then goes on from the lowest, `_conclude`)."""
