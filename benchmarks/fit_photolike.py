@@ -131,8 +131,7 @@ def simulate(name: str, seed: int) -> np.ndarray:
     """The case's clean coat at lattice resolution (the compared species)."""
     family, params, _ = CASES[name]
     fam = fitting.FAMILIES[family]
-    sim = fitting.Simulator(fam.make(LATTICE), shape=LATTICE, steps=fam.steps, window=fam.window,
-                            dt_cap=fam.dt_cap, anisotropic=fam.anisotropic)
+    sim = fam.simulator(LATTICE)
     return np.asarray(sim.run(params, jax.random.key(seed)), np.float64)
 
 

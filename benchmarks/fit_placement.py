@@ -56,9 +56,7 @@ MODEL_FAMILIES = ["turing", "bard", "gray-scott", "reinforcement"]  # the others
 def family_simulator(name: str) -> tuple[Simulator, list, ParamSpace]:
     fam = FAMILIES[name]
     names = list(fam.fit)
-    stepping = {"solver": fam.solver, "stride": fam.stride} if fam.solver is not None else {}
-    sim = Simulator(fam.make(SHAPE), shape=SHAPE, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap,
-                    anisotropic=fam.anisotropic, **stepping)
+    sim = fam.simulator(SHAPE)
     return sim, names, ParamSpace.build(names, {n: fam.bounds[n] for n in names})
 
 

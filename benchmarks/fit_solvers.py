@@ -37,7 +37,6 @@ import numpy as np
 
 import morphojax as mj
 from fitting._families import FAMILIES
-from fitting._simulator import Simulator
 from fitting._space import ParamSpace
 from fitting._stats import StatsConfig, distance, texture_stats
 
@@ -101,12 +100,10 @@ def measure(name: str, n_points: int, seed: int = 0) -> dict:
     cfg = StatsConfig()
     space = ParamSpace.build(fam.fit, {n: fam.bounds[n] for n in fam.fit})
     thetas = np.asarray(space.from_unit(jnp.asarray(space.design(n_points, "lhs", seed), jnp.float32)))
-    base = Simulator(fam.make(SHAPE), shape=SHAPE, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap,
-                     anisotropic=fam.anisotropic)
+    base = fam.simulator(SHAPE, solver=None, stride=1)  # forward Euler, the reference
     keys_a = jax.random.split(jax.random.key(1), SEEDS)
     keys_b = jax.random.split(jax.random.key(2), SEEDS)
-    sims = {label: Simulator(fam.make(SHAPE), shape=SHAPE, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap,
-                             anisotropic=fam.anisotropic, solver=solver, stride=stride)
+    sims = {label: fam.simulator(SHAPE, solver=solver, stride=stride)
             for label, solver, stride in CANDIDATES[name]}
     for s in [base, *sims.values()]:  # compile every program once before any timing
         jax.block_until_ready(_stats(s, space, cfg, jnp.asarray(thetas[0]), keys_a))

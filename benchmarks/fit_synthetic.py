@@ -60,8 +60,7 @@ def resim_distance(sim, params, target_stats, noise, cfg, seeds):
 def run_case(name, shape=(64, 64), auto=False, repeat=0):
     family, truth, names = CASES[name]
     fam = fitting.FAMILIES[family]
-    sim = fitting.Simulator(fam.make(shape), shape=shape, steps=fam.steps, window=fam.window, dt_cap=fam.dt_cap,
-                            anisotropic=fam.anisotropic)
+    sim = fam.simulator(shape)
     target = np.asarray(sim.run(truth, jax.random.key(10_000 + repeat)))  # a seed the fit never uses
     t0 = time.perf_counter()
     result = fitting.fit(target, model="auto" if auto else family, fit=names, shape=shape, progress=False)

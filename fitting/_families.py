@@ -95,6 +95,27 @@ class Family:
         return Simulator(self.make(tuple(shape)), shape=tuple(shape), steps=2, window=1,
                          anisotropic=self.anisotropic).parameter_names()
 
+    def simulator(self, shape, template=None, *, steps: int | None = None, window: int | None = None,
+                  **options):
+        """The fit's forward model (`fitting.Simulator`) of this family on `shape`: its template
+        (or `template`, a model of the family), its steps, differentiated window, time-step
+        cap and anisotropic species, and its solver and stride where the stride divides the
+        steps and window (a user's own that it does not divide run with forward Euler).
+        `options` are further `Simulator` fields, and override these (`solver=None,
+        stride=1` for forward Euler)."""
+        from ._simulator import Simulator
+
+        shape = tuple(shape)
+        template = self.make(shape) if template is None else template
+        steps = int(self.steps if steps is None else steps)
+        window = int(min(self.window, steps) if window is None else window)
+        stepping = {}
+        if (self.solver is not None and isinstance(template, mj.AbstractModel) and not steps % self.stride
+                and not window % self.stride):
+            stepping = {"solver": self.solver, "stride": self.stride}
+        return Simulator(template, **{"shape": shape, "steps": steps, "window": window, "dt_cap": self.dt_cap,
+                                      "anisotropic": self.anisotropic, **stepping, **options})
+
     def default_bounds(self, name: str):
         """(low, high, geometric) of a parameter of this family, or None when it has none."""
         base = name.split(".")[-1]

@@ -222,16 +222,6 @@ def _resolve(model, names, shape):
     return fam, template, names, (dict(fam.bounds) if fam is not None else {})
 
 
-def _stepping(fam, template, steps: int, window: int) -> dict:
-    """The family's solver and stride for a model template whose steps and window the
-    stride divides (a user's own steps or window that it does not divide run with Euler)."""
-    if fam is None or fam.solver is None or not isinstance(template, mj.AbstractModel):
-        return {}
-    if steps % fam.stride or window % fam.stride:
-        return {}
-    return {"solver": fam.solver, "stride": fam.stride}
-
-
 def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds, seed, design_seeds, design,
             n_design, rounds, keep, method, max_steps, fallback, stats, boundary, species, batch_size, noise_seeds,
             learning_rate, length_scale, intervals, progress, simulator=None, stage_prefix="",
@@ -247,13 +237,15 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
             raise ValueError(f"{name} must be an integer >= {low} (got {value!r})")
     t_start = time.perf_counter()
     timings = {}
-    steps = int(steps if steps is not None else fam.steps if fam is not None else 8000)
-    window = int(window if window is not None else min(fam.window if fam is not None else 1000, steps))
-    dt_cap = fam.dt_cap if fam is not None else 0.01
-    sim = simulator or Simulator(template, shape=tuple(shape), steps=steps, window=window, species=species,
-                                 boundary=boundary, fixed=fixed_tuple(fixed), dt_cap=dt_cap,
-                                 anisotropic=fam.anisotropic if fam is not None else (),
-                                 **_stepping(fam, template, steps, window))
+    run = dict(species=species, boundary=boundary, fixed=fixed_tuple(fixed))
+    if simulator is not None:
+        sim = simulator
+    elif fam is not None:
+        sim = fam.simulator(shape, template, steps=steps, window=window, **run)
+    else:  # a model of no family: `Simulator`'s own run
+        steps = int(8000 if steps is None else steps)
+        window = int(min(1000, steps) if window is None else window)
+        sim = Simulator(template, shape=tuple(shape), steps=steps, window=window, **run)
     sim.check_names(names + [k for k, _ in sim.fixed])
     all_bounds = {n: fam_bounds[n] for n in names if n in fam_bounds}
     stripes = None  # the target's stripe direction, where an oriented family fits an angle

@@ -478,6 +478,25 @@ TRUTHS = {  # a pattern-forming point of each family's default fitted parameters
 }
 
 
+def test_a_familys_simulator_is_its_run():
+    """`Family.simulator`: the family's steps, window, time-step cap and anisotropic species;
+    its solver only where the stride divides the steps and the window; overrides win."""
+    import dataclasses
+
+    for fam in fitting.FAMILIES.values():
+        sim = fam.simulator((32, 32))
+        assert (sim.shape, sim.steps, sim.window, sim.dt_cap, sim.anisotropic) == (
+            (32, 32), fam.steps, min(fam.window, fam.steps), fam.dt_cap, fam.anisotropic)
+    striding = dataclasses.replace(fitting.FAMILIES["turing"], solver=mj.ETDRK(order=1), stride=5)
+    assert striding.simulator((32, 32)).stride == 5 and striding.simulator((32, 32)).solver is not None
+    for steps, window in ((8000, 998), (3001, 300)):  # the stride does not divide one of them: Euler
+        sim = striding.simulator((32, 32), steps=steps, window=window)
+        assert (sim.solver, sim.stride, sim.steps, sim.window) == (None, 1, steps, window)
+    assert striding.simulator((32, 32), solver=None, stride=1).solver is None
+    own = mj.Turing(ratio=12.0)  # a user's model of the family keeps its values
+    assert striding.simulator((32, 32), own, species="a").template is own
+
+
 def test_every_family_declares_its_parameters():
     assert set(TRUTHS) <= set(fitting.FAMILIES)
     for name, fam in fitting.FAMILIES.items():
