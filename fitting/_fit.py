@@ -613,6 +613,28 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
     return refined
 
 
+def add_intervals(result: FitResult, target, *, progress=None) -> FitResult:
+    """A fit made without intervals concluded again at its best point, with them: the report
+    stage as a fit that computed them runs it (`_conclude`; where their region finds a lower
+    basin, the local search goes on from there). `auto` on a target too small to split fits
+    its families without intervals and gives them to the one it returns (`fitting._pipeline`)."""
+    state = result.resume
+    if state is None:
+        raise ValueError("add_intervals needs a full fit's result (a screen's keeps no fit state)")
+    t_start = time.perf_counter()
+    tstats = target_stats(target.field, state.stats, target.wavelength)
+    with _recording(progress, f"intervals {result.family}", 2 * max(int(state.settings["max_steps"]), 1)) as rec:
+        z = state.space.to_free(jnp.asarray([result.params[n] for n in state.space.names], jnp.float32))
+        finals = [(result.loss, np.asarray(z), result.config["starts"][0]["method"], result.loss)]
+        timings = {k: v for k, v in result.timings.items() if k != "total"}
+        settings = {k: v for k, v in result.config.items() if k not in CONCLUDED}
+        out = _conclude(target, state, tstats, finals, rec, timings, t_start, settings, result.design,
+                        result.history, intervals=True)
+    out.timings["total"] += result.timings.get("total", 0.0)  # the fit's stages and these
+    out.family, out.palette, out.simulator = result.family, result.palette, result.simulator
+    return out
+
+
 def _tolist(tree):
     return {k: np.asarray(v).tolist() for k, v in tree.items()}
 

@@ -13,7 +13,9 @@
 4. The refinement (`_refined`): the judged fit goes on from its best point on the whole
    target, so the parameters and intervals use all of it (the training half alone gave
    intervals that missed two of three true values of the bounded-Ua target, the whole
-   covered all three; fit_synthetic.md); the verdict stays the training fit's.
+   covered all three; fit_synthetic.md); the verdict stays the training fit's. On a target
+   too small to split, `auto` gives the intervals to the family it returns after the ranking
+   (`_with_intervals`), not to every family it fits in full.
 """
 
 from __future__ import annotations
@@ -23,10 +25,11 @@ import time
 from functools import partial
 from pathlib import Path
 
-from ._auto import TOP, fit_auto
-from ._fit import METHODS, fit_one
+from ._auto import TOP, fit_auto, penalised, shows_stripes
+from ._fit import METHODS, add_intervals, fit_one
 from ._fit import refine as refine_fit
 from ._result import FitResult
+from ._families import stripe_angle
 from ._simulator import Simulator
 from ._stats import StatsConfig
 from ._target import Target, load_target
@@ -140,7 +143,8 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
             to the target's dominant wavelength (None to disable).
         progress: True for a progress bar, False for silence, None (default) for a bar in
             terminals and notebooks and one log line per stage on stderr elsewhere.
-        intervals: compute the Laplace credible intervals (`fitting.laplace_intervals`).
+        intervals: compute the credible intervals (`fitting.laplace_intervals` and the
+            likelihood region); with "auto", for the family returned only.
         families, top: for "auto", the families screened (default all) and how many are
             fitted in full (default `TOP`, 3).
         screen: for "auto", how the screen orders the families: "heldout" (default), the
@@ -176,11 +180,13 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     whole_wavelength = target.wavelength if target.wavelength is not None else target_wavelength(target.field)
     training = dataclasses.replace(target, field=train, wavelength=whole_wavelength) if apart else target
     # a split target's training fit is judged on the held-out half, then refined on the
-    # whole (`_refined`), which computes the intervals: the training fit need not
+    # whole (`_refined`), which computes the intervals: the training fit need not; `auto` on a
+    # target too small to split gives them to the family it returns only (`_with_intervals`)
     refined = refine and apart
-    options["intervals"] = intervals and not refined
-    assess = _assessor(target.field, heldout, apart, seed)
     auto = isinstance(model, str) and model == "auto"
+    late = intervals and auto and not refined
+    options["intervals"] = intervals and not refined and not late
+    assess = _assessor(target.field, heldout, apart, seed)
     if auto:
         score = partial(heldout_distance, whole=target.field, heldout=heldout)
         result = fit_auto(training, _names(fit), families=families, top=top, progress=mode, assess=assess,
@@ -189,6 +195,8 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         result = assess(fit_one(training, model, _names(fit), progress=mode, simulator=simulator, **options))
     if refined and result.rejected is None:
         result = _refined(result, target, intervals, mode)
+    elif late and result.rejected is None:
+        result = _with_intervals(result, target, mode, assess)
     result.verdict = verdict_text(result.family, result.heldout, result.rejected, auto)
     result.fields["heldout"] = heldout
     result.config["split"] = {"train": list(train.shape), "heldout": list(heldout.shape), "apart": apart}
@@ -215,6 +223,26 @@ def _refined(result: FitResult, target: Target, intervals: bool, mode) -> FitRes
     whole.ranking = result.ranking
     whole.fields["training_fit"] = result.fields["fit"]
     return whole
+
+
+def _with_intervals(result: FitResult, target: Target, mode, assess) -> FitResult:
+    """`auto`'s returned fit on a target too small to split, given its intervals
+    (`fitting._fit.add_intervals`) after the ranking: the families it did not return are not
+    worth theirs (each a region of about 50-200 evaluations of the loss, and a second local
+    search where the region finds a lower basin). Where the fit moves to such a basin, its coat
+    is judged again and its ranking row follows it; a coat that has become degenerate is not
+    returned: the fit without intervals stands, and the config says why."""
+    out = assess(add_intervals(result, target, progress=mode))
+    if out.rejected is not None:
+        result.config["intervals"] = {"kept_fit": f"the fit their region moved to is degenerate: {out.rejected}"}
+        return result
+    row = result.ranking[0]  # the returned family's
+    ok, coherence = shows_stripes(out.sample, stripe_angle(target.field))
+    out.ranking = [{**row, "params": out.params, "fit_loss": out.loss, "loss": out.score,
+                    "penalised": penalised(out.score, row["k"], out.resume.stats),
+                    "heldout": out.heldout["distance"], "convincing": out.convincing, "coherence": coherence,
+                    "shows_stripes": ok}, *result.ranking[1:]]
+    return out
 
 
 def _assessor(whole, heldout, apart: bool, seed: int):

@@ -626,11 +626,25 @@ def test_a_limits_band_is_profiled_along_the_parameter_it_trades_with():
     assert np.concatenate([e[0] for e in single])[:, 0].min() == 0.8  # without a trading parameter: one scan
 
 
-def test_auto_ranks_every_screened_family():
+def test_auto_ranks_every_screened_family(monkeypatch):
+    from fitting import _auto
+
+    full = []  # the intervals option of each fit `auto` makes in full
+
+    def spy(*args, **kwargs):
+        if not kwargs.get("screen_only"):
+            full.append(kwargs["intervals"])
+        return fit_one(*args, **kwargs)
+
+    fit_one = _auto.fit_one
+    monkeypatch.setattr(_auto, "fit_one", spy)
     sim = fitting.Simulator(mj.Turing(), shape=(24, 24), steps=8000, window=1000)
     field = np.asarray(sim.run({"ratio": 20.0, "scale": 1.2, "lower_b": 2.0}, jax.random.key(5)))
     res = fitting.fit(field, model="auto", families=["turing", "reinforcement"], top=1, shape=(24, 24), seeds=2,
                       n_design=6, rounds=0, keep=1, max_steps=0, noise_seeds=3, progress=False)
+    # a target too small to split: the full fits without intervals, the returned one given them
+    assert not res.config["split"]["apart"] and full == [False] and set(res.intervals) == set(res.params)
+    assert res.ranking[0]["params"] == res.params and res.ranking[0]["heldout"] == res.heldout["distance"]
     ranking = res.ranking
     assert {r["family"] for r in ranking} == {"turing", "reinforcement"} and res.family == ranking[0]["family"]
     assert [r["stage"] for r in ranking] == ["full", "screen"]
