@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import time
 
 import equinox as eqx
@@ -88,6 +89,9 @@ class FitState:
     length_power: float
     settings: dict  # method, max_steps, learning_rate, fallback, seeds, seed, noise_seeds
     bands: tuple = ()  # the saturation limits' bands the global stage profiled (`fitting._limits`)
+    # the local stage's ends, (loss, free point, method, start loss) best first, that the report
+    # stage concluded from (`add_intervals` concludes from them again)
+    finals: tuple = ()
 
 
 def _as_template(model, shape):
@@ -147,9 +151,7 @@ def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
     """The local stage's (loss, wavelength) at z, through `_seed_run` (no separate compiled
     program). The wavelength is the verdict's (the median over seeds of each field's spectral
     peak, `wavelength_of`), not the loss's soft-argmax: the guard that keeps a search on the
-    target's scale then judges it as the snap and the degenerate check do. With the soft-argmax,
-    Bard's refinement ended 18-20% long by the verdict's measure on both seed sets of the
-    photo-like suite (benchmarks/results/fit_photolike*.md) while the guard saw it on scale."""
+    target's scale (`walked_off`) then judges it as the snap and the degenerate check do."""
     theta = space.from_free(jnp.asarray(z, jnp.float32))
     per_seed, fields = _seed_run(sim, space, cfg, theta, keys)
     mean = jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
@@ -237,7 +239,7 @@ def fit_one(target, model, names, *, fixed, bounds, shape, steps, window, seeds,
             raise ValueError(f"{name} must be an integer >= {low} (got {value!r})")
     t_start = time.perf_counter()
     timings = {}
-    run = dict(species=species, boundary=boundary, fixed=fixed_tuple(fixed))
+    run = {"species": species, "boundary": boundary, "fixed": fixed_tuple(fixed)}
     if simulator is not None:
         sim = simulator
     elif fam is not None:
@@ -432,7 +434,8 @@ def _local_stage(state: FitState, tstats, starts, rec) -> list:
     """The local search from each start (free coordinates) against `tstats`: a list of
     (loss, z, method used, start loss), best first. Nelder-Mead takes over where the
     gradient method does not improve on its start by 1%, and a search that ends off the
-    target's scale from a start on it keeps the start."""
+    target's scale, from a start on it or farther from it than its start, keeps the start
+    (`walked_off`)."""
     s = state.settings
     method, max_steps = s["method"], s["max_steps"]
     sim, space, stats, keys, noise = state.sim, state.space, state.stats, state.keys, state.noise
@@ -452,16 +455,31 @@ def _local_stage(state: FitState, tstats, starts, rec) -> list:
             nm_loss, nm_lam = _loss_of(sim, space, stats, z_nm, keys, tstats, noise)
             if nm_loss < end_loss:
                 z, end_loss, end_lam, used = z_nm, nm_loss, nm_lam, f"{used}->nelder-mead"
-        lam_t = float(tstats["wavelength"])
-        if off_scale(end_lam, lam_t) and not off_scale(start_lam, lam_t):  # walked off the pattern's scale
+        if walked_off(start_lam, end_lam, float(tstats["wavelength"])):
             z, end_loss, used = z0, start_loss, f"{used} (ended off the target's scale: kept the start)"
         finals.append((end_loss, np.asarray(z), used, start_loss))
     finals.sort(key=lambda f: f[0] if np.isfinite(f[0]) else np.inf)
     return finals
 
 
+def walked_off(start_wavelength: float, end_wavelength: float, target_wavelength: float) -> bool:
+    """Whether a local search that went from a point of `start_wavelength` to one of
+    `end_wavelength` walked off the target's scale: it ends off it (`off_scale`) from a start
+    on it, or farther from it (in log ratio) than its start. A start already off the scale
+    does not free the search to go farther."""
+    if not off_scale(end_wavelength, target_wavelength):
+        return False
+    if not off_scale(start_wavelength, target_wavelength):
+        return True
+
+    def away(lam):  # a flat field (NaN) is as far as can be
+        return abs(math.log(lam / target_wavelength)) if np.isfinite(lam) and lam > 0 else math.inf
+
+    return away(end_wavelength) > away(start_wavelength)
+
+
 # what `_conclude` and `refine` write into a result's config (a refinement writes them anew)
-CONCLUDED = ("method", "scale_snap", "simulator", "stats", "starts", "restarted", "refined")
+CONCLUDED = ("method", "scale_snap", "simulator", "stats", "starts", "restarted", "refined", "lower_in_region")
 
 
 def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, settings, design_rows, history,
@@ -558,10 +576,13 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
             result.config["restarted"] = {"from": params, "loss": float(best_loss), "region_loss": better[1],
                                           "final_loss": float(again[0][0])}
             return result
+    lower = None  # a lower point the region found that the fit did not go on from
+    if better is not None and not restart:
+        lower = {"params": {n: float(v) for n, v in zip(names, np.asarray(better[0]))}, "loss": better[1]}
     timings["total"] = time.perf_counter() - t_start
     history = history + [{k: v for k, v in row.items() if k != "z"} for row in rec.rows]  # `history`: earlier stages'
 
-    config = {**settings, "method": used,
+    config = {**settings, "method": used, "lower_in_region": lower,
               "scale_snap": None if snap is None else {
                   "moved": snap["moved"], "start_wavelength": snap_wavelength, "wavelength": snap["wavelength"],
                   "target_wavelength": float(tstats["wavelength"]), "start_loss": snap_loss,
@@ -573,10 +594,9 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
     return FitResult(
         params=params, model=sim.build(params), loss=float(best_loss), noise_floor=floor, history=history,
         timings=timings, stats={"target": _tolist(tstats), "fit": _tolist(fit_stats), "noise": _tolist(noise)},
-        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample, "samples": samples,
-                                          "fit_seeds": run_at(theta_best)[1]},
+        report=report, design=design_rows, fields={"target": np.asarray(target.field), "fit": sample, "samples": samples},
         config=config, target=target.describe(), score=score, intervals=ivals, undetermined=undetermined,
-        correlated=correlated, resume=state,
+        correlated=correlated, resume=dataclasses.replace(state, finals=tuple(finals)),
     )
 
 
@@ -614,22 +634,22 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
 
 
 def add_intervals(result: FitResult, target, *, progress=None) -> FitResult:
-    """A fit made without intervals concluded again at its best point, with them: the report
-    stage as a fit that computed them runs it (`_conclude`; where their region finds a lower
-    basin, the local search goes on from there). `auto` on a target too small to split fits
-    its families without intervals and gives them to the one it returns (`fitting._pipeline`)."""
+    """A fit made without intervals, concluded again with them: the report stage from the
+    same local-stage ends (`FitState.finals`), so the same move to the target's scale and the
+    same point, samples and verdict, plus the intervals. It does not go on from a lower point
+    their region finds (`config["lower_in_region"]` records it). `auto` on a target too small
+    to split fits its families without intervals and gives them to the one it returns, whose
+    ranking then still holds (`fitting._pipeline`)."""
     state = result.resume
-    if state is None:
+    if state is None or not state.finals:
         raise ValueError("add_intervals needs a full fit's result (a screen's keeps no fit state)")
     t_start = time.perf_counter()
     tstats = target_stats(target.field, state.stats, target.wavelength)
-    with _recording(progress, f"intervals {result.family}", 2 * max(int(state.settings["max_steps"]), 1)) as rec:
-        z = state.space.to_free(jnp.asarray([result.params[n] for n in state.space.names], jnp.float32))
-        finals = [(result.loss, np.asarray(z), result.config["starts"][0]["method"], result.loss)]
+    with _recording(progress, f"intervals {result.family}", 1) as rec:
         timings = {k: v for k, v in result.timings.items() if k != "total"}
         settings = {k: v for k, v in result.config.items() if k not in CONCLUDED}
-        out = _conclude(target, state, tstats, finals, rec, timings, t_start, settings, result.design,
-                        result.history, intervals=True)
+        out = _conclude(target, state, tstats, list(state.finals), rec, timings, t_start, settings, result.design,
+                        result.history, intervals=True, restart=False)
     out.timings["total"] += result.timings.get("total", 0.0)  # the fit's stages and these
     out.family, out.palette, out.simulator = result.family, result.palette, result.simulator
     return out

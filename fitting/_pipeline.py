@@ -25,11 +25,10 @@ import time
 from functools import partial
 from pathlib import Path
 
-from ._auto import TOP, fit_auto, penalised, shows_stripes
+from ._auto import TOP, fit_auto
 from ._fit import METHODS, add_intervals, fit_one
 from ._fit import refine as refine_fit
 from ._result import FitResult
-from ._families import stripe_angle
 from ._simulator import Simulator
 from ._stats import StatsConfig
 from ._target import Target, load_target
@@ -144,7 +143,8 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         progress: True for a progress bar, False for silence, None (default) for a bar in
             terminals and notebooks and one log line per stage on stderr elsewhere.
         intervals: compute the credible intervals (`fitting.laplace_intervals` and the
-            likelihood region); with "auto", for the family returned only.
+            likelihood region); with "auto", for the family returned only (none where it
+            returns a rejected coat).
         families, top: for "auto", the families screened (default all) and how many are
             fitted in full (default `TOP`, 3).
         screen: for "auto", how the screen orders the families: "heldout" (default), the
@@ -184,7 +184,7 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     # target too small to split gives them to the family it returns only (`_with_intervals`)
     refined = refine and apart
     auto = isinstance(model, str) and model == "auto"
-    late = intervals and auto and not refined
+    late = intervals and auto and not apart
     options["intervals"] = intervals and not refined and not late
     assess = _assessor(target.field, heldout, apart, seed)
     if auto:
@@ -196,7 +196,7 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     if refined and result.rejected is None:
         result = _refined(result, target, intervals, mode)
     elif late and result.rejected is None:
-        result = _with_intervals(result, target, mode, assess)
+        result = _with_intervals(result, target, mode)
     result.verdict = verdict_text(result.family, result.heldout, result.rejected, auto)
     result.fields["heldout"] = heldout
     result.config["split"] = {"train": list(train.shape), "heldout": list(heldout.shape), "apart": apart}
@@ -210,12 +210,9 @@ def _refined(result: FitResult, target: Target, intervals: bool, mode) -> FitRes
     verdict and ranking kept: the refined fit has seen the held-out half, so the verdict
     stays the training fit's, the estimate of how the fit generalises (model selection on
     held-out data, the final estimate from all of it). A refined coat that is degenerate is
-    not returned: the training fit stands (without intervals), and the config says why. The
-    coat is judged on both its seed sets, the noise floor's and the loss's: on the photo-like
-    suite, Bard's refined coat passed on the floor's seeds while the loss's read it 39% long."""
+    not returned: the training fit stands (without intervals), and the config says why."""
     whole = refine_fit(result, target, intervals=intervals, progress=mode)
-    lam = result.heldout["target_wavelength"]
-    rejected = degenerate(whole.fields["samples"], lam) or degenerate(whole.fields["fit_seeds"], lam)
+    rejected = degenerate(whole.fields["samples"], result.heldout["target_wavelength"])
     if rejected is not None:
         result.config["refined"] = {"kept_training_fit": f"the refined coat is degenerate: {rejected}"}
         return result
@@ -225,23 +222,15 @@ def _refined(result: FitResult, target: Target, intervals: bool, mode) -> FitRes
     return whole
 
 
-def _with_intervals(result: FitResult, target: Target, mode, assess) -> FitResult:
-    """`auto`'s returned fit on a target too small to split, given its intervals
-    (`fitting._fit.add_intervals`) after the ranking: the families it did not return are not
-    worth theirs (each a region of about 50-200 evaluations of the loss, and a second local
-    search where the region finds a lower basin). Where the fit moves to such a basin, its coat
-    is judged again and its ranking row follows it; a coat that has become degenerate is not
-    returned: the fit without intervals stands, and the config says why."""
-    out = assess(add_intervals(result, target, progress=mode))
-    if out.rejected is not None:
-        result.config["intervals"] = {"kept_fit": f"the fit their region moved to is degenerate: {out.rejected}"}
-        return result
-    row = result.ranking[0]  # the returned family's
-    ok, coherence = shows_stripes(out.sample, stripe_angle(target.field))
-    out.ranking = [{**row, "params": out.params, "fit_loss": out.loss, "loss": out.score,
-                    "penalised": penalised(out.score, row["k"], out.resume.stats),
-                    "heldout": out.heldout["distance"], "convincing": out.convincing, "coherence": coherence,
-                    "shows_stripes": ok}, *result.ranking[1:]]
+def _with_intervals(result: FitResult, target: Target, mode) -> FitResult:
+    """`auto`'s returned fit on a target too small to split, given its intervals after the
+    ranking (`fitting._fit.add_intervals`: the same point and samples, so its verdict and
+    ranking stand): the families it did not return are not worth theirs, each a region of
+    about 50-200 evaluations of the loss."""
+    out = add_intervals(result, target, progress=mode)
+    out.heldout, out.rejected, out.convincing, out.ranking = (result.heldout, result.rejected, result.convincing,
+                                                              result.ranking)
+    out.timings["verdict"] = result.timings.get("verdict", 0.0)
     return out
 
 

@@ -22,7 +22,7 @@ class FitResult:
     stats: target and fit statistics; report: region statistics (spot counts, areas,
     eccentricity, Euler number); design: the global stage's points and losses; fields: the
     target field and one simulated field of the fit ("fit"), for previews; a full fit's
-    also "samples" (the noise floor's seeds) and "fit_seeds" (the seeds the loss averages).
+    also "samples", one field per seed of the noise floor.
     """
 
     params: dict

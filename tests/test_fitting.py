@@ -286,7 +286,7 @@ def test_a_split_target_is_judged_on_its_held_out_half_and_refined_on_the_whole(
 def test_the_local_stage_judges_scale_as_the_verdict_does(small_fit):
     """The local search's guard reads a point's wavelength as the verdict and the snap do:
     the median over the loss's seeds of each field's spectral peak (`wavelength_of`), not the
-    loss's soft-argmax; and a full fit keeps those seeds' fields."""
+    loss's soft-argmax."""
     _, _, result = small_fit
     state = result.resume
     tstats = {k: np.asarray(v, np.float32) for k, v in result.stats["target"].items()}
@@ -295,36 +295,16 @@ def test_the_local_stage_judges_scale_as_the_verdict_does(small_fit):
                                    tstats, state.noise)
     _, fields = fitting._fit._seed_run(state.sim, state.space, state.stats, theta, state.keys)
     assert lam == pytest.approx(float(np.median([fitting._verdict.wavelength_of(f) for f in np.asarray(fields)])))
-    assert np.asarray(result.fields["fit_seeds"]).shape == (2, 32, 32)
-    assert np.array_equal(np.asarray(result.fields["fit_seeds"]), np.asarray(fields))  # the same seeds, the fit's point
 
 
-def test_a_refined_coat_off_the_targets_scale_on_the_losss_seeds_is_not_returned(split_fits, monkeypatch):
-    """`_refined` keeps the training fit when the refined coat is off the target's wavelength
-    on either of its seed sets, the noise floor's or the loss's."""
-    import dataclasses
+def test_a_search_that_walks_off_the_targets_scale_keeps_its_start():
+    from fitting._fit import walked_off
 
-    from fitting import _pipeline
-
-    field, refined, training = split_fits
-    lam = training.heldout["target_wavelength"]
-    cols = np.arange(64)
-
-    def stripes(wavelength, n):  # vertical stripes of a known wavelength on the fit's 32x32 lattice
-        return np.stack([np.tile((np.sin(2 * np.pi * cols[:32] / wavelength + k) > 0).astype(float), (32, 1))
-                         for k in range(n)])
-
-    on, off = stripes(lam, 4), stripes(1.5 * lam, 2)
-    assert fitting._verdict.degenerate(on, lam) is None and fitting._verdict.degenerate(off, lam) is not None
-    target = fitting.load_target(field, cell_pixels=1.0)
-    for samples, seeds, kept in ((on, on[:2], False), (on, off, True), (off, on[:2], True)):
-        made = dataclasses.replace(refined, fields={**refined.fields, "samples": samples, "fit_seeds": seeds},
-                                   config=dict(refined.config))
-        monkeypatch.setattr(_pipeline, "refine_fit", lambda *a, made=made, **k: made)
-        base = dataclasses.replace(training, config=dict(training.config))
-        out = _pipeline._refined(base, target, intervals=False, mode=None)
-        assert (out is base) == kept
-        assert ("kept_training_fit" in out.config.get("refined", {})) == kept
+    assert not walked_off(10.0, 11.9, 10.0)  # ends on the scale (within 20%)
+    assert walked_off(10.0, 12.5, 10.0) and walked_off(10.0, float("nan"), 10.0) and walked_off(5.0, 3.9, 4.5)  # grid-scale
+    assert walked_off(12.5, 15.9, 10.0)  # off from the start, and farther
+    assert not walked_off(15.9, 12.5, 10.0) and not walked_off(float("nan"), 13.0, 10.0)  # off, but nearer
+    assert walked_off(12.5, 7.5, 10.0)  # farther in log ratio: 10 / 7.5 > 12.5 / 10
 
 
 def test_the_intervals_region_reports_a_lower_basin_than_the_fit(small_fit):
@@ -638,13 +618,24 @@ def test_auto_ranks_every_screened_family(monkeypatch):
 
     fit_one = _auto.fit_one
     monkeypatch.setattr(_auto, "fit_one", spy)
+    given = []  # the fit given its intervals after the ranking, and what came back
+
+    def spy_intervals(result, target, **kwargs):
+        given.append((result, add_intervals(result, target, **kwargs)))
+        return given[-1][1]
+
+    add_intervals = fitting._pipeline.add_intervals
+    monkeypatch.setattr(fitting._pipeline, "add_intervals", spy_intervals)
     sim = fitting.Simulator(mj.Turing(), shape=(24, 24), steps=8000, window=1000)
     field = np.asarray(sim.run({"ratio": 20.0, "scale": 1.2, "lower_b": 2.0}, jax.random.key(5)))
     res = fitting.fit(field, model="auto", families=["turing", "reinforcement"], top=1, shape=(24, 24), seeds=2,
                       n_design=6, rounds=0, keep=1, max_steps=0, noise_seeds=3, progress=False)
     # a target too small to split: the full fits without intervals, the returned one given them
     assert not res.config["split"]["apart"] and full == [False] and set(res.intervals) == set(res.params)
-    assert res.ranking[0]["params"] == res.params and res.ranking[0]["heldout"] == res.heldout["distance"]
+    (ranked, concluded), = given  # the same point and samples: the ranking and verdict hold
+    assert ranked.intervals == {} and concluded is res and res.params == ranked.params
+    assert np.array_equal(res.fields["samples"], ranked.fields["samples"]) and res.loss == ranked.loss
+    assert res.config["starts"] == ranked.config["starts"] and res.config["scale_snap"] == ranked.config["scale_snap"]
     ranking = res.ranking
     assert {r["family"] for r in ranking} == {"turing", "reinforcement"} and res.family == ranking[0]["family"]
     assert [r["stage"] for r in ranking] == ["full", "screen"]
