@@ -155,7 +155,9 @@ def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
     theta = space.from_free(jnp.asarray(z, jnp.float32))
     per_seed, fields = _seed_run(sim, space, cfg, theta, keys)
     mean = jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
-    return float(distance(mean, tstats, cfg, noise)), float(np.nanmedian([wavelength_of(f) for f in np.asarray(fields)]))
+    peaks = [wavelength_of(f) for f in np.asarray(fields)]
+    lam = float(np.nanmedian(peaks)) if np.isfinite(peaks).any() else float("nan")  # flat fields: no wavelength
+    return float(distance(mean, tstats, cfg, noise)), lam
 
 
 
