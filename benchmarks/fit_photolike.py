@@ -367,7 +367,7 @@ def table_row(r) -> str:
             f"{r['cell_pixels']:.2f} ({r['scale_error']:+.0%}) | {lam} | {convincing} | {held} | {r['seconds']:.0f} |")
 
 
-def table(rows, model: str, shape) -> str:
+def table(rows, model: str, shape, tuning: bool = False) -> str:
     """The markdown report: goals, how far the rows reach them, per degradation, every fit."""
     n = len(rows)
     right, near = sum(r["right"] for r in rows), sum(close(r) for r in rows)
@@ -376,7 +376,8 @@ def table(rows, model: str, shape) -> str:
         "Goals: the right family on at least 80% of the fits; the fitted coat's wavelength within 10% of the "
         "clean coat's on at least 90%.", "",
         f"model={model}, lattice {shape[0]}x{shape[1]}, {PHOTO_PIXELS} photo pixels per simulated cell; "
-        "coats simulated with the report seeds (never used for tuning)." + (
+        + ("coats simulated with the tuning seeds (for decisions; not a held-out result)." if tuning else
+           "coats simulated with the report seeds (never used for tuning).") + (
             " With a family given, 'right family' only holds for that family's cases." if model != "auto" else ""),
         "",
         f"- right family: {right}/{n} = {right / max(n, 1):.0%} ({'met' if right >= 0.8 * n else 'NOT MET'})",
@@ -451,7 +452,7 @@ def run_fits(names, degradations, model: str, shape, settings: dict, tuning: boo
             rows.append(row)
             print(json.dumps(row, default=float), file=sys.stderr)
             out.with_suffix(".json").write_text(json.dumps(rows, indent=1, default=float))
-            out.with_suffix(".md").write_text(table(rows, model, shape))
+            out.with_suffix(".md").write_text(table(rows, model, shape, tuning))
     return rows
 
 
