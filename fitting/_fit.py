@@ -614,9 +614,7 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
     scales (`result.resume`). `fitting.fit` fits the training half of a split target, judges
     that fit on the held-out half, then refines it on the whole target, so that the
     parameters and intervals use all of it (`fitting._pipeline`)."""
-    state = result.resume
-    if state is None:
-        raise ValueError("refine needs a full fit's result (a screen's keeps no fit state)")
+    state = _resumable(result, "refine")
     t_start = time.perf_counter()
     tstats = target_stats(target.field, state.stats, target.wavelength)
     with _recording(progress, f"refine {result.family}", 2 * max(int(state.settings["max_steps"]), 1)) as rec:
@@ -625,11 +623,8 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
         finals = _local_stage(state, tstats, [start], rec)
         timings = {k: v for k, v in result.timings.items() if k not in ("report", "intervals", "total")}
         timings["refine"] = time.perf_counter() - t_start
-        settings = {k: v for k, v in result.config.items() if k not in CONCLUDED}
-        refined = _conclude(target, state, tstats, finals, rec, timings, t_start, settings, result.design,
-                            result.history, intervals)
-    refined.timings["total"] += result.timings.get("total", 0.0)  # the training fit's stages and these
-    refined.family, refined.palette, refined.simulator = result.family, target.palette(), result.simulator
+        refined = _conclude_again(result, target, tstats, finals, rec, timings, t_start, intervals=intervals)
+    refined.palette = target.palette()
     refined.config["refined"] = {"from": dict(result.params), "training_loss": result.loss,
                                  "training_noise_floor": result.noise_floor, "method": refined.config["method"]}
     return refined
@@ -642,17 +637,32 @@ def add_intervals(result: FitResult, target, *, progress=None) -> FitResult:
     their region finds (`config["lower_in_region"]` records it). `auto` on a target too small
     to split fits its families without intervals and gives them to the one it returns, whose
     ranking then still holds (`fitting._pipeline`)."""
-    state = result.resume
-    if state is None or not state.finals:
-        raise ValueError("add_intervals needs a full fit's result (a screen's keeps no fit state)")
+    state = _resumable(result, "add_intervals")
     t_start = time.perf_counter()
     tstats = target_stats(target.field, state.stats, target.wavelength)
     with _recording(progress, f"intervals {result.family}", 1) as rec:
         timings = {k: v for k, v in result.timings.items() if k != "total"}
-        settings = {k: v for k, v in result.config.items() if k not in CONCLUDED}
-        out = _conclude(target, state, tstats, list(state.finals), rec, timings, t_start, settings, result.design,
-                        result.history, intervals=True, restart=False)
-    out.timings["total"] += result.timings.get("total", 0.0)  # the fit's stages and these
+        return _conclude_again(result, target, tstats, list(state.finals), rec, timings, t_start, intervals=True,
+                               restart=False)
+
+
+def _resumable(result: FitResult, caller: str) -> FitState:
+    """The fit state `refine` and `add_intervals` go on from (a screen's result keeps none)."""
+    state = result.resume
+    if state is None or (caller == "add_intervals" and not state.finals):
+        raise ValueError(f"{caller} needs a full fit's result (a screen's keeps no fit state)")
+    return state
+
+
+def _conclude_again(result: FitResult, target, tstats, finals, rec, timings, t_start, **conclude) -> FitResult:
+    """The report stage of `result`'s fit run again from `finals` against `target`, with the
+    first fit's state, settings, design and history: the new result's total time counts the
+    first fit's, and it keeps its family, palette and simulator."""
+    state = result.resume
+    settings = {k: v for k, v in result.config.items() if k not in CONCLUDED}
+    out = _conclude(target, state, tstats, finals, rec, timings, t_start, settings, result.design, result.history,
+                    **conclude)
+    out.timings["total"] += result.timings.get("total", 0.0)  # the first fit's stages and these
     out.family, out.palette, out.simulator = result.family, result.palette, result.simulator
     return out
 
