@@ -30,6 +30,8 @@ Protocol (fixed before any tuning of the fit against this suite):
         [--model auto|FAMILY] [--shape 64 64] [--tuning] [--top N]
     python benchmarks/fit_photolike.py --dry-run         # the whole path, tiny settings
     python benchmarks/fit_photolike.py --wavelengths [--tuning]  # the target's wavelength, no fits
+    python benchmarks/fit_photolike.py --camera [--tuning]  # the camera's error on the statistics
+    python benchmarks/fit_photolike.py --oracle [--tuning]  # the known point against the last run's fits
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import os
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 import jax
@@ -340,7 +343,7 @@ def fit_one(name: str, which: str, seed: int, wavelength: float, photo: np.ndarr
             "convincing": getattr(result, "convincing", None), "heldout": getattr(result, "heldout", {}) or {},
             "training_wavelength": float(np.ravel((result.stats or {}).get("target", {}).get("wavelength", [np.nan]))[0]),
             "rejected": getattr(result, "rejected", None), "scale_snap": (result.config or {}).get("scale_snap"),
-            "ranking": [{k: r.get(k) for k in ("family", "stage", "heldout", "rejected")} for r in result.ranking],
+            "ranking": [{k: r.get(k) for k in ("family", "stage", "heldout", "rejected", "params")} for r in result.ranking],
             "true_family_rank": next((k + 1 for k, r in enumerate(result.ranking) if r["family"] == family), None),
             "seconds": seconds, "load": os.getloadavg()[0]}
 
@@ -437,6 +440,156 @@ def wavelengths(names, tuning: bool, out: Path) -> None:
     print("\n".join(lines))
 
 
+# the groups of the fit's loss that read the pigment's intensity distribution (`fitting.StatsConfig`)
+HISTOGRAM_GROUPS = ("quantiles", "dark", "moments")
+
+
+def _scored(family: str, params: dict, shape, keys, tstats, cfg, whole, heldout) -> dict:
+    """A point's coat (`len(keys)` seeds) scored as the fit's design scores it (the loss
+    against the training half with the config's noise scales, and each group's share) and as
+    the verdict ranks it (the held-out distance); its wavelength (median of the seeds' peaks)."""
+    import jax.numpy as jnp
+
+    from fitting._stats import mean_stats, stats_vector
+    from fitting._verdict import heldout_distance, wavelength_of
+
+    sim = fitting.FAMILIES[family].simulator(tuple(shape))
+    fields = np.asarray(jax.vmap(lambda k: sim.run({n: jnp.float32(v) for n, v in params.items()}, k))(keys))
+    diff = np.asarray(stats_vector(mean_stats(jnp.asarray(fields), cfg), cfg)) - np.asarray(stats_vector(tstats, cfg))
+    groups, i = {}, 0
+    for g in cfg.groups():
+        n = int(np.size(tstats[g]))
+        groups[g] = float(np.sum(diff[i:i + n] ** 2))
+        i += n
+    return {"family": family, "params": {n: float(v) for n, v in params.items()}, "loss": float(np.sum(diff ** 2)),
+            "histogram_share": sum(groups[g] for g in HISTOGRAM_GROUPS if g in groups) / max(sum(groups.values()), 1e-12),
+            "groups": groups, "heldout": float(heldout_distance(list(fields), whole, heldout)),
+            "wavelength": float(np.nanmedian([wavelength_of(f) for f in fields]))}
+
+
+def oracle(names, tuning: bool, runs: Path, out: Path, shape=(64, 64), seeds: int = 8) -> None:
+    """Why a fit of the last run (`runs`, its JSON) is wrong: the known parameters' coat and
+    the returned fit's, each simulated with `seeds` new seeds, scored against the degraded
+    photo ("all") by the fit's design loss and by the verdict's held-out distance (`_scored`).
+    The known point is the case's parameters with the family's length moved to the target's
+    wavelength as the fit's design moves a point: first to the estimated scale, then once by
+    the measured wavelength (wavelength ~ length ** length_power). Which measure prefers which
+    point tells a search that stopped short (both prefer the truth) from a loss that misleads
+    (the held-out distance prefers the truth, the loss the fit), a ranking that misleads (the
+    reverse) and a photo nearer the fitted coat by both. No fits."""
+    from fitting._fit import target_stats
+    from fitting._verdict import split_target, target_wavelength
+
+    fitted = {r["case"]: r for r in json.loads(runs.read_text()) if r["degradation"] == "all" and not r.get("error")}
+    cfg = fitting.StatsConfig()
+    keys = jax.random.split(jax.random.key(90001), seeds)  # seeds no fit uses
+    rows = []
+    for name in names:
+        seed = case_seed(name, tuning)
+        try:
+            _, _, _, photo = coat(name, tuning)
+            target = fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+        except ValueError as err:
+            rows.append({"case": name, "error": str(err)})
+            continue
+        train, heldout, _ = split_target(target.field)
+        aim = target_wavelength(target.field)
+        tstats = target_stats(train, cfg, aim)
+        family, known, _ = CASES[name]
+        fam = fitting.FAMILIES[family]
+        truth = dict(known)
+        score = partial(_scored, shape=shape, keys=keys, tstats=tstats, cfg=cfg, whole=target.field, heldout=heldout)
+        if fam.length in truth:
+            truth[fam.length] *= (PHOTO_PIXELS / target.cell_pixels) ** (1.0 / fam.length_power)
+            first = score(family, truth)
+            if np.isfinite(first["wavelength"]):
+                truth[fam.length] *= (aim / first["wavelength"]) ** (1.0 / fam.length_power)
+        row = {"case": name, "right_family": family, "aim": aim, "truth": score(family, truth)}
+        if name in fitted:
+            run = fitted[name]
+            row["fit"] = score(run["fitted_family"], run["fitted"])
+            t, f = row["truth"], row["fit"]
+            row["diagnosis"] = (
+                "search stopped short" if t["loss"] < f["loss"] and t["heldout"] < f["heldout"] else
+                "the loss misleads" if t["heldout"] < f["heldout"] else
+                "the ranking misleads" if t["loss"] < f["loss"] else "the photo is nearer the fit")
+        rows.append(row)
+        print(json.dumps(row, default=float), file=sys.stderr)
+    out.with_suffix(".json").write_text(json.dumps(rows, indent=1, default=float))
+    lines = [f"# Known parameters against the fit's answer (`benchmarks/fit_photolike.py --oracle"
+             f"{' --tuning' if tuning else ''}`)", "",
+             f"{time.strftime('%Y-%m-%d')}, {'tuning' if tuning else 'report'} seeds, every camera fault at once; "
+             f"the fits of `{runs.name}`. Each point simulated with {seeds} seeds no fit uses, on {shape[0]}x{shape[1]}. "
+             "Loss: the fit's design loss against the training half (the config's noise scales), with the share of "
+             f"its histogram groups ({', '.join(HISTOGRAM_GROUPS)}); held-out: the verdict's distance to the "
+             "held-out tile (what ranks families). Diagnosis (`oracle`): which measure prefers which point.", "",
+             "| case | known point (family) | loss (histogram share) | held-out | wavelength | returned fit (family) | "
+             "loss (histogram share) | held-out | wavelength | diagnosis |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"| {r['case']} | {r['error']} | | | | | | | | |")
+            continue
+
+        def cells(p):
+            return (f"{p['family']} | {p['loss']:.0f} ({p['histogram_share']:.0%}) | {p['heldout']:.3f} | "
+                    f"{p['wavelength']:.1f}")
+
+        fit = cells(r["fit"]) if "fit" in r else "- | - | - | -"
+        lines.append(f"| {r['case']} | {cells(r['truth'])} | {fit} | {r.get('diagnosis', '-')} |")
+    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def camera(names, tuning: bool, out: Path) -> dict:
+    """How far the camera moves a coat's statistics: each case's clean photo and its degraded
+    photo ("all"), loaded at the degraded one's estimated scale, their statistics compared
+    group by group (the root mean square over a group's components, in the statistics' own
+    units, the wavelength's as a log), on both halves of the target (the fit's training part
+    is a half). Returns {group: root mean square over every case and half}: the observation
+    error `fitting.PHOTO_CAMERA` is set from the tuning seeds' run. No fits."""
+    from fitting._fit import target_stats
+    from fitting._verdict import split_target, target_wavelength
+
+    cfg = fitting.StatsConfig(camera=())
+    groups = cfg.groups()
+    lines = [f"# How far the camera moves a coat's statistics (`benchmarks/fit_photolike.py --camera"
+             f"{' --tuning' if tuning else ''}`)", "",
+             f"{time.strftime('%Y-%m-%d')}, {'tuning' if tuning else 'report'} seeds, every camera fault at once, "
+             "against the clean photo at the same scale; each half of each target. Per group: the root mean square "
+             "difference over its components, in units of `StatsConfig.noise` (the seed-to-seed spread).", "",
+             "| case | half | " + " | ".join(groups) + " |", "|---|---|" + "---|" * len(groups)]
+    squares = {g: [] for g in groups}
+    for name in names:
+        seed = case_seed(name, tuning)
+        try:
+            _, _, _, photo = coat(name, tuning)
+            shot = fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+        except ValueError as err:
+            lines.append(f"| {name} | {err} |" + " |" * len(groups))
+            continue
+        clean = fitting.load_target(degrade(photo, "none", seed), cell_pixels=shot.cell_pixels, invert=True)
+        for half in (0, 1):
+            a, b = (target_stats(split_target(t.field)[half], cfg, target_wavelength(t.field)) for t in (shot, clean))
+            cells = []
+            for g in groups:
+                va, vb = (np.atleast_1d(np.asarray(v[g], np.float64)) for v in (a, b))
+                if g == "wavelength":
+                    va, vb = np.log(va), np.log(vb)
+                mean_square = float(np.mean((va - vb) ** 2))
+                squares[g].append(mean_square)
+                cells.append(f"{np.sqrt(mean_square) / cfg.scale(g):.1f}")
+            lines.append(f"| {name} | {half + 1} | " + " | ".join(cells) + " |")
+    rms = {g: float(np.sqrt(np.mean(v))) for g, v in squares.items() if v}
+    lines += ["", "Root mean square over every case and half, in the statistics' units (`fitting.PHOTO_CAMERA` "
+              "holds the tuning seeds'):", "", "| " + " | ".join(rms) + " |", "|" + "---|" * len(rms),
+              "| " + " | ".join(f"{v:.3g}" for v in rms.values()) + " |", "",
+              "In units of the seed-to-seed spread:", "", "| " + " | ".join(rms) + " |", "|" + "---|" * len(rms),
+              "| " + " | ".join(f"{v / cfg.scale(g):.1f}" for g, v in rms.items()) + " |"]
+    out.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return rms
+
+
 def run_fits(names, degradations, model: str, shape, settings: dict, tuning: bool, out: Path,
              previews: bool = True) -> list:
     """Fit every (case, degradation); the JSON and the table are rewritten after each fit."""
@@ -468,11 +621,23 @@ def main():
     p.add_argument("--tuning", action="store_true", help="the tuning seeds (never the report's)")
     p.add_argument("--top", type=int, default=None,
                    help="families `auto` fits in full (default: fit's own); the report's name gains -topN")
+    p.add_argument("--camera", action="store_true",
+                   help="how far the camera moves the statistics from the clean photo's; no fits")
+    p.add_argument("--oracle", action="store_true",
+                   help="the known parameters and the last run's fits, scored by the loss and the held-out distance")
     p.add_argument("--wavelengths", action="store_true",
                    help="the wavelength the fit aims at, half and whole target, against the clean coat's; no fits")
     args = p.parse_args()
     if args.wavelengths:
         wavelengths(args.only, args.tuning, RESULTS / f"fit_photolike-wavelengths{'-tuning' if args.tuning else ''}.md")
+        return
+    if args.camera:
+        camera(args.only, args.tuning, RESULTS / f"fit_photolike-camera{'-tuning' if args.tuning else ''}.md")
+        return
+    if args.oracle:
+        tag = "-tuning" if args.tuning else ""
+        oracle(args.only, args.tuning, RESULTS / f"fit_photolike{tag}.json", RESULTS / f"fit_photolike-oracle{tag}",
+               tuple(args.shape))
         return
     if args.pictures:
         pictures(args.only, args.tuning)

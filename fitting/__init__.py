@@ -29,7 +29,7 @@ from ._uncertainty import laplace_intervals
 from ._report import loss_curve, preview, region_stats
 from ._simulator import Simulator
 from ._space import DEFAULT_BOUNDS, ParamSpace
-from ._stats import StatsConfig, distance, mean_stats, noise_of, residuals, stats_vector, texture_stats
+from ._stats import PHOTO_CAMERA, StatsConfig, distance, mean_stats, noise_of, residuals, stats_vector, texture_stats
 from ._target import CHANNELS, Target, estimate_cell_pixels, load_target
 
 __all__ = [
@@ -41,6 +41,7 @@ __all__ = [
     "FitResult",
     "METHODS",
     "ORIENTED_COHERENCE",
+    "PHOTO_CAMERA",
     "ParamSpace",
     "Simulator",
     "StatsConfig",

@@ -30,7 +30,7 @@ from ._fit import METHODS, add_intervals, fit_one
 from ._fit import refine as refine_fit
 from ._result import FitResult
 from ._simulator import Simulator
-from ._stats import StatsConfig
+from ._stats import PHOTO_CAMERA, StatsConfig
 from ._target import Target, load_target
 from ._verdict import (degenerate, heldout_distance, judge, split_target, target_wavelength,
                        verdict_text)
@@ -136,7 +136,9 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
         method: "bfgs", "lm" (Levenberg-Marquardt), "nelder-mead" or "gd"; max_steps: its
             iteration budget; fallback: Nelder-Mead when the gradient method does not improve.
         stats: which statistics and how they are weighted (default `StatsConfig()`: pigment
-            maps, with orientation).
+            maps, with orientation); its `camera`, None by default, becomes
+            `fitting.PHOTO_CAMERA` for a photo's target (the camera's error on its
+            statistics, added to the seed-to-seed noise) and none for an array's.
         length_scale: the fitted parameter that moves the wavelength ("family": the family's
             own, e.g. Turing's `scale`); the global stage moves each design point along it
             to the target's dominant wavelength (None to disable).
@@ -161,12 +163,14 @@ def fit(target, model=DEFAULTS["model"], fit=DEFAULTS["fit"], *, fixed=None, bou
     """
     t_wall = time.perf_counter()
     check_fit_inputs(model, shape, seeds, steps, window, fixed)
-    stats = StatsConfig() if stats is None else stats
     mode = None if progress is False else "bar" if progress or progress_default() else "log"
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; allowed: {', '.join(METHODS)}")
     if not isinstance(target, Target):  # a path, or an array already at lattice resolution
         target = load_target(target) if isinstance(target, (str, Path)) else load_target(target, cell_pixels=1.0)
+    stats = StatsConfig() if stats is None else stats
+    if stats.camera is None:  # a photo's statistics carry the camera's error; an array's none
+        stats = dataclasses.replace(stats, camera=PHOTO_CAMERA if target.photo else ())
     options = dict(fixed=fixed, bounds=bounds, shape=shape, steps=steps, window=window, seeds=seeds, seed=seed,
                    design_seeds=design_seeds, design=design, n_design=n_design, rounds=rounds, keep=keep,
                    method=method, max_steps=max_steps, fallback=fallback, stats=stats, boundary=boundary,

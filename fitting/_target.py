@@ -67,6 +67,12 @@ class Target:
     def shape(self):
         return self.field.shape
 
+    @property
+    def photo(self) -> bool:
+        """Whether the target is a picture (a file or an image), not an array: its statistics
+        carry a camera's error (`fitting.PHOTO_CAMERA`)."""
+        return self.source != "<array>"
+
     def describe(self) -> dict:
         """JSON-ready description of how the target was made (file, crop, channel, inversion, cell pixels)."""
         return {"source": self.source, "crop": list(self.crop) if self.crop else None, "channel": self.channel,

@@ -145,3 +145,41 @@ def test_the_training_half_aims_at_the_whole_targets_wavelength(monkeypatch):
     lam_whole, lam_half = verdict.target_wavelength(whole), verdict.target_wavelength(seen["field"])
     assert abs(lam_half / lam_whole - 1) > 0.1  # the halves differ: the test can tell
     assert float(seen["stats"]["wavelength"]) == pytest.approx(lam_whole, rel=1e-6)
+
+
+def test_a_photos_statistics_carry_the_cameras_error(monkeypatch, tmp_path):
+    """`fitting.fit` gives a photo's target the camera's observation error
+    (`PHOTO_CAMERA`) and an array's none, a user's own `camera` is kept; the residuals divide
+    by sqrt(noise^2 + camera^2) per group, against a NumPy computation of the rule."""
+    from PIL import Image
+
+    texture = band_texture((96, 96), 9.0, 3)
+    Image.fromarray((255 * texture).astype(np.uint8), "L").save(tmp_path / "coat.png")
+    seen = []
+
+    def watched(field, stats, wavelength=None):
+        seen.append(stats.camera)
+        raise RuntimeError("stop after the target's statistics")
+
+    monkeypatch.setattr(fit_module, "target_stats", watched)
+    for target, stats in ((texture, None), (tmp_path / "coat.png", None),
+                          (tmp_path / "coat.png", fitting.StatsConfig(camera=()))):
+        with pytest.raises(RuntimeError, match="stop after"):
+            fitting.fit(target, model="turing", progress=False, stats=stats)
+    assert seen == [(), fitting.PHOTO_CAMERA, ()]
+
+    plain = fitting.StatsConfig(camera=())
+    photo = fitting.StatsConfig(camera=fitting.PHOTO_CAMERA)
+    a = fitting.texture_stats(jax.numpy.asarray(texture, jax.numpy.float32), plain)
+    b = fitting.texture_stats(jax.numpy.asarray(band_texture((96, 96), 12.0, 4), jax.numpy.float32), plain)
+    got = np.asarray(fitting.residuals(a, b, photo))
+    expected = []
+    for name in photo.groups():
+        va, vb = (np.atleast_1d(np.asarray(s[name], np.float64)) for s in (a, b))
+        if name == "wavelength":
+            va, vb = np.log(va), np.log(vb)
+        sd = np.hypot(photo.scale(name), dict(fitting.PHOTO_CAMERA)[name])
+        expected.append((va - vb) / (sd * np.sqrt(len(va))))
+    np.testing.assert_allclose(got, np.concatenate(expected), rtol=2e-4, atol=1e-5)
+    # the camera's error only shrinks the residuals, most where it is largest (the histogram's)
+    assert float(fitting.distance(a, b, photo)) < float(fitting.distance(a, b, plain))
