@@ -257,6 +257,14 @@ def coat(name: str, tuning: bool = False):
     return seed, field, check_pattern(name, field), photograph(field, CASES[name][2])
 
 
+def shot(name: str, tuning: bool = False):
+    """(seed, clean coat's wavelength, clean photo, target) of a case photographed with every
+    camera fault ("all") and loaded as a fit loads it; a ValueError where the case has no coat
+    or `load_target` refuses the photo."""
+    seed, _, wavelength, photo = coat(name, tuning)
+    return seed, wavelength, photo, fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+
+
 # ---- contact sheets ----------------------------------------------------------------------
 
 
@@ -418,10 +426,8 @@ def wavelengths(names, tuning: bool, out: Path) -> None:
              "whole, clean photo |", "|---|---|---|---|---|---|"]
     errors = {"half": [], "whole": []}
     for name in names:
-        seed = case_seed(name, tuning)
         try:
-            _, _, wavelength, photo = coat(name, tuning)
-            target = fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+            seed, wavelength, photo, target = shot(name, tuning)
         except ValueError as err:
             lines.append(f"| {name} | {err} | | | | |")
             continue
@@ -481,14 +487,12 @@ def oracle(names, tuning: bool, runs: Path, out: Path, shape=(64, 64), seeds: in
     from fitting._verdict import split_target, target_wavelength
 
     fitted = {r["case"]: r for r in json.loads(runs.read_text()) if r["degradation"] == "all" and not r.get("error")}
-    cfg = fitting.StatsConfig()
+    cfg = fitting.StatsConfig(camera=fitting.PHOTO_CAMERA)  # the loss `fit` gives a photo's target
     keys = jax.random.split(jax.random.key(90001), seeds)  # seeds no fit uses
     rows = []
     for name in names:
-        seed = case_seed(name, tuning)
         try:
-            _, _, _, photo = coat(name, tuning)
-            target = fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+            target = shot(name, tuning)[3]
         except ValueError as err:
             rows.append({"case": name, "error": str(err)})
             continue
@@ -520,7 +524,8 @@ def oracle(names, tuning: bool, runs: Path, out: Path, shape=(64, 64), seeds: in
              f"{' --tuning' if tuning else ''}`)", "",
              f"{time.strftime('%Y-%m-%d')}, {'tuning' if tuning else 'report'} seeds, every camera fault at once; "
              f"the fits of `{runs.name}`. Each point simulated with {seeds} seeds no fit uses, on {shape[0]}x{shape[1]}. "
-             "Loss: the fit's design loss against the training half (the config's noise scales), with the share of "
+             "Loss: the fit's design loss against the training half (the config's noise scales and the camera's "
+             "error, `fitting.PHOTO_CAMERA`, as `fit` scores a photo), with the share of "
              f"its histogram groups ({', '.join(HISTOGRAM_GROUPS)}); held-out: the verdict's distance to the "
              "held-out tile (what ranks families). Diagnosis (`oracle`): which measure prefers which point.", "",
              "| case | known point (family) | loss (histogram share) | held-out | wavelength | returned fit (family) | "
@@ -560,16 +565,14 @@ def camera(names, tuning: bool, out: Path) -> dict:
              "| case | half | " + " | ".join(groups) + " |", "|---|---|" + "---|" * len(groups)]
     squares = {g: [] for g in groups}
     for name in names:
-        seed = case_seed(name, tuning)
         try:
-            _, _, _, photo = coat(name, tuning)
-            shot = fitting.load_target(degrade(photo, "all", seed), cell_pixels=None, invert=True)
+            seed, _, photo, target = shot(name, tuning)
         except ValueError as err:
             lines.append(f"| {name} | {err} |" + " |" * len(groups))
             continue
-        clean = fitting.load_target(degrade(photo, "none", seed), cell_pixels=shot.cell_pixels, invert=True)
+        clean = fitting.load_target(degrade(photo, "none", seed), cell_pixels=target.cell_pixels, invert=True)
         for half in (0, 1):
-            a, b = (target_stats(split_target(t.field)[half], cfg, target_wavelength(t.field)) for t in (shot, clean))
+            a, b = (target_stats(split_target(t.field)[half], cfg, target_wavelength(t.field)) for t in (target, clean))
             cells = []
             for g in groups:
                 va, vb = (np.atleast_1d(np.asarray(v[g], np.float64)) for v in (a, b))

@@ -104,9 +104,10 @@ class StatsConfig:
 # autocorrelation 8, spectrum, pyramid and morphology 4-5, wavelength 2, orientation 0.5.
 # Without it a fit to a photo matched the camera's pigment share first: the known parameters'
 # coats scored a loss 68-88% made of those three groups on 6 of the 8, and lost to the fit's
-# answer by the loss on 5 (fit_photolike-oracle-tuning.md). With it, `auto` returned the right
-# family on 7 of the 8 tuning coats (5 before), each within 10% of its wavelength (7 before;
-# fit_photolike-tuning.md).
+# answer by the loss on 5 (fit_photolike-oracle-tuning-before-camera.md). With it, `auto`
+# returned the right family on 7 of the 8 tuning coats (5 before), each within 10% of its
+# wavelength (7 before; fit_photolike-tuning.md); on the report seeds 5 of 10 (6 before) and
+# 8 of 10 (9; fit_photolike.md): the tuning gain is not confirmed there.
 PHOTO_CAMERA = (("spectrum", 0.645), ("wavelength", 0.0418), ("quantiles", 0.155), ("dark", 0.0756),
                 ("autocorr", 0.0799), ("edges", 1.78), ("moments", 0.392), ("pyramid", 0.159),
                 ("morphology", 0.0887), ("orientation", 0.0488))

@@ -181,5 +181,5 @@ def test_a_photos_statistics_carry_the_cameras_error(monkeypatch, tmp_path):
         sd = np.hypot(photo.scale(name), dict(fitting.PHOTO_CAMERA)[name])
         expected.append((va - vb) / (sd * np.sqrt(len(va))))
     np.testing.assert_allclose(got, np.concatenate(expected), rtol=2e-4, atol=1e-5)
-    # the camera's error only shrinks the residuals, most where it is largest (the histogram's)
+    # the camera's error in the denominators only shrinks the distance
     assert float(fitting.distance(a, b, photo)) < float(fitting.distance(a, b, plain))
