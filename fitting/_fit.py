@@ -637,7 +637,7 @@ def add_intervals(result: FitResult, target, *, progress=None) -> FitResult:
     their region finds (`config["lower_in_region"]` records it). `auto` on a target too small
     to split fits its families without intervals and gives them to the one it returns, whose
     ranking then still holds (`fitting._pipeline`)."""
-    state = _resumable(result, "add_intervals")
+    state = _resumable(result, "add_intervals", needs_finals=True)
     t_start = time.perf_counter()
     tstats = target_stats(target.field, state.stats, target.wavelength)
     with _recording(progress, f"intervals {result.family}", 1) as rec:
@@ -646,10 +646,11 @@ def add_intervals(result: FitResult, target, *, progress=None) -> FitResult:
                                restart=False)
 
 
-def _resumable(result: FitResult, caller: str) -> FitState:
-    """The fit state `refine` and `add_intervals` go on from (a screen's result keeps none)."""
+def _resumable(result: FitResult, caller: str, needs_finals: bool = False) -> FitState:
+    """The fit state `refine` and `add_intervals` go on from (a screen's result keeps none;
+    `needs_finals`: the local stage's ends too, which `add_intervals` concludes from)."""
     state = result.resume
-    if state is None or (caller == "add_intervals" and not state.finals):
+    if state is None or (needs_finals and not state.finals):
         raise ValueError(f"{caller} needs a full fit's result (a screen's keeps no fit state)")
     return state
 
