@@ -452,8 +452,9 @@ HISTOGRAM_GROUPS = ("quantiles", "dark", "moments")
 
 def _scored(family: str, params: dict, shape, keys, tstats, cfg, whole, heldout) -> dict:
     """A point's coat (`len(keys)` seeds) scored as the fit's design scores it (the loss
-    against the training half with the config's noise scales, and each group's share) and as
-    the verdict ranks it (the held-out distance); its wavelength (median of the seeds' peaks)."""
+    against the training half with `cfg`'s noise scales and camera error, and each group's
+    share) and as the verdict ranks it (the held-out distance); its wavelength (median of the
+    seeds' peaks)."""
     import jax.numpy as jnp
 
     from fitting._stats import mean_stats, stats_vector
