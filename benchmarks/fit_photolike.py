@@ -457,12 +457,12 @@ def _scored(family: str, params: dict, shape, keys, tstats, cfg, whole, heldout)
     seeds' peaks)."""
     import jax.numpy as jnp
 
-    from fitting._stats import mean_stats, stats_vector
     from fitting._verdict import heldout_distance, wavelength_of
 
     sim = fitting.FAMILIES[family].simulator(tuple(shape))
-    fields = np.asarray(jax.vmap(lambda k: sim.run({n: jnp.float32(v) for n, v in params.items()}, k))(keys))
-    diff = np.asarray(stats_vector(mean_stats(jnp.asarray(fields), cfg), cfg)) - np.asarray(stats_vector(tstats, cfg))
+    fields = jax.vmap(lambda k: sim.run({n: jnp.float32(v) for n, v in params.items()}, k))(keys)
+    diff = np.asarray(fitting.residuals(fitting.mean_stats(fields, cfg), tstats, cfg))
+    fields = np.asarray(fields)
     groups, i = {}, 0
     for g in cfg.groups():
         n = int(np.size(tstats[g]))

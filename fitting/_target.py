@@ -26,6 +26,7 @@ MIN_PIXELS = 16  # a crop smaller than this cannot show a texture
 MIN_CELLS = 16  # nor can a lattice smaller than this
 MIN_WAVELENGTHS = 2.0  # fewer wavelengths across the crop cannot be measured
 WARN_WAVELENGTHS = 4.0  # fewer make the statistics noisy
+ARRAY_SOURCE = "<array>"  # a Target's `source` when it was made from an array, not a picture
 
 
 @dataclasses.dataclass
@@ -71,7 +72,7 @@ class Target:
     def photo(self) -> bool:
         """Whether the target is a picture (a file or an image), not an array: its statistics
         carry a camera's error (`fitting.PHOTO_CAMERA`)."""
-        return self.source != "<array>"
+        return self.source != ARRAY_SOURCE
 
     def describe(self) -> dict:
         """JSON-ready description of how the target was made (file, crop, channel, inversion, cell pixels)."""
@@ -260,7 +261,7 @@ def load_target(source, *, crop=None, channel: str = "luminance", invert: bool =
         arr = np.asarray(source, np.float64)
         if arr.ndim != 2:
             raise ValueError(f"an array target must be 2D (got shape {arr.shape})")
-        im, name, rgb = None, "<array>", None
+        im, name, rgb = None, ARRAY_SOURCE, None
     if im is not None:
         width, height = im.size
         if crop is not None:
