@@ -21,6 +21,8 @@
    Nelder-Mead without gradients, or plain gradient descent), with gradients through the
    simulation's last `window` steps (checkpointed, so memory does not grow with steps).
    When gradients do not help (no improvement), Nelder-Mead takes over from the same start.
+   The solver is stepped from Python, one compiled step at a time, and each step's point and
+   loss go to the history (`_search`).
 5. The best point is moved to the target's wavelength where the likelihood cannot tell the
    two apart (`fitting._scale.snap_to_wavelength`), then re-simulated for the report:
    statistics of target and fit, the noise floor (the distance expected between the target
@@ -110,14 +112,6 @@ def _as_template(model, shape):
     raise ValueError(f"model must be a model name, a model, an Experiment or a YoungCA (got {type(model).__name__})")
 
 
-_RECORDERS: list = []  # the recorder of the fit in progress (callbacks from compiled code)
-
-
-def _record(loss, z):
-    if _RECORDERS:
-        _RECORDERS[-1](loss, z)
-
-
 def _stats_at(sim, space, cfg, theta, keys):
     params = space.as_dict(theta)
     fields = jax.vmap(lambda k: sim.run(params, k))(keys)
@@ -161,22 +155,72 @@ def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
 
 
 
+# The local search is stepped from Python (`_search`), one compiled step at a time, and
+# records its point and loss after each step: a compiled program with a host callback
+# inside is never written to the persistent compilation cache, so while the loss reported
+# through one, every new process compiled the search again (14 s of a fit from the command
+# line, benchmarks/results/fit_speed.md).
 def _loss_fn(z, args):
     sim, space, cfg, keys, tstats, noise = args
-    value = distance(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise)
-    jax.debug.callback(_record, value, z)
-    return value
+    return distance(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise), None
 
 
 def _resid_fn(z, args):
     sim, space, cfg, keys, tstats, noise = args
-    r = residuals(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise)
-    jax.debug.callback(_record, jnp.sum(r * r), z)
-    return r
+    return residuals(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise), None
+
+
+_NO_OPTIONS, _NO_TAGS = {}, frozenset()
+
+
+def _searched(state, z):
+    """(loss, point) of a search after a step: the accepted point `z` and its loss, which
+    quasi-Newton and Gauss-Newton solvers keep (BFGS; Levenberg-Marquardt: the sum of
+    squared residuals), or the best vertex of Nelder-Mead's simplex and its loss."""
+    if hasattr(state, "f_simplex"):
+        best = jnp.argmin(state.f_simplex)
+        return state.f_simplex[best], state.simplex[best]
+    info = state.f_info
+    if hasattr(info, "f"):
+        return info.f, z
+    return sum(jnp.sum(r ** 2) for r in jax.tree_util.tree_leaves(info.residual)), z
+
+
+@eqx.filter_jit
+def _search_init(solver, fn, z, args):
+    f_struct, aux_struct = eqx.filter_eval_shape(fn, z, args)
+    return solver.init(fn, z, args, _NO_OPTIONS, f_struct, aux_struct, _NO_TAGS)
+
+
+@eqx.filter_jit
+def _search_step(solver, fn, z, args, state):
+    """One step: (point, state, (loss, point) so far, whether the search stops), stopping
+    as `optx.minimise` does (the solver's own test, a failure, a non-finite point)."""
+    import optimistix as optx
+
+    z, state, _ = solver.step(fn, z, args, _NO_OPTIONS, state, _NO_TAGS)
+    done, result = solver.terminate(fn, z, args, _NO_OPTIONS, state, _NO_TAGS)
+    stop = done | (result != optx.RESULTS.successful) | ~jnp.all(jnp.isfinite(z))
+    return z, state, _searched(state, z), stop
+
+
+def _search(solver, fn, z0, args, max_steps: int, rec):
+    """`solver` (an Optimistix minimiser or least-squares solver) on `fn` from z0 for at
+    most `max_steps` steps, as `optx.minimise(..., throw=False)` runs it, the search's
+    current point and its loss recorded by `rec` after each step (`_searched`). Returns the
+    point the solver returns, as `optx.minimise` does."""
+    z = jnp.asarray(z0)
+    state = _search_init(solver, fn, z, args)
+    for _ in range(int(max_steps)):
+        z, state, (loss, at), stop = _search_step(solver, fn, z, args, state)
+        rec(loss, at)
+        if bool(stop):
+            break
+    return z
 
 
 class _Recorder:
-    """Collects losses evaluated inside compiled solvers (through jax.debug.callback)."""
+    """Collects the losses and points of a fit's searches and shows them on its progress bar."""
 
     def __init__(self, bar=None):
         self.rows = []
@@ -198,12 +242,9 @@ def _recording(progress, label: str, total: int):
     from ._progress import make_progress
 
     bar = make_progress(progress, label, total)
-    rec = _Recorder(bar)
-    _RECORDERS.append(rec)
     try:
-        yield rec
+        yield _Recorder(bar)
     finally:
-        _RECORDERS.remove(rec)
         if bar is not None:
             bar.close()
 
@@ -680,15 +721,19 @@ def _local(method, args, z0, max_steps, learning_rate, rec):
         return z0, method
     rec.stage = method
     if method == "gd":
-        z, _ = gradient_descent(lambda z: _loss_fn(z, args), z0, learning_rate=learning_rate, steps=max_steps)
+        at = [jnp.asarray(z0)]  # the point each step's loss was measured at
+
+        def record(step, z_new, value):
+            rec(value, at[-1])
+            at.append(z_new)
+
+        z, _ = gradient_descent(lambda z: _loss_fn(z, args)[0], z0, learning_rate=learning_rate, steps=max_steps,
+                                callback=record)
         return z, "gd"
     if method == "lm":
-        sol = optx.least_squares(_resid_fn, optx.LevenbergMarquardt(rtol=1e-3, atol=1e-3), z0, args=args,
-                                 max_steps=max_steps, throw=False)
-        return sol.value, "lm"
+        return _search(optx.LevenbergMarquardt(rtol=1e-3, atol=1e-3), _resid_fn, z0, args, max_steps, rec), "lm"
     solver = optx.BFGS(rtol=1e-3, atol=1e-3) if method == "bfgs" else optx.NelderMead(rtol=1e-3, atol=1e-3)
-    sol = optx.minimise(_loss_fn, solver, z0, args=args, max_steps=max_steps, throw=False)
-    return sol.value, method
+    return _search(solver, _loss_fn, z0, args, max_steps, rec), method
 
 
 def gradient_descent(loss, z0, *, learning_rate: float = 0.05, steps: int = 50, callback=None,

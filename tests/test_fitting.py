@@ -343,6 +343,37 @@ def test_gradient_descent_loop_decreases_the_loss():
     assert losses[-1] < losses[0] and np.allclose(np.asarray(z), 3.0, atol=0.5)
 
 
+@pytest.mark.parametrize("method", ["bfgs", "nelder-mead", "lm"])
+def test_the_stepped_search_is_optimistix_own_loop(method):
+    """The local search steps an Optimistix solver from Python (no host callback inside its
+    compiled program, so the persistent cache keeps it): on Rosenbrock's valley it ends where
+    `optx.minimise` / `optx.least_squares` end, and records one row per step, each a point
+    and its loss (the accepted point, or the simplex's best vertex)."""
+    import optimistix as optx
+
+    from fitting._fit import _Recorder, _search
+
+    def residual(z, args):
+        return jnp.stack([1.0 - z[0], 10.0 * (z[1] - z[0] ** 2)]), None
+
+    def loss(z, args):
+        return jnp.sum(residual(z, args)[0] ** 2), None
+
+    solver = {"bfgs": optx.BFGS(rtol=1e-6, atol=1e-6), "nelder-mead": optx.NelderMead(rtol=1e-6, atol=1e-6),
+              "lm": optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)}[method]
+    z0 = jnp.asarray([-1.2, 1.0])
+    if method == "lm":
+        fn, oracle = residual, optx.least_squares(residual, solver, z0, has_aux=True, max_steps=60, throw=False)
+    else:
+        fn, oracle = loss, optx.minimise(loss, solver, z0, has_aux=True, max_steps=60, throw=False)
+    rec = _Recorder()
+    z = _search(solver, fn, z0, None, 60, rec)
+    np.testing.assert_allclose(np.asarray(z), np.asarray(oracle.value), rtol=1e-5, atol=1e-6)
+    assert len(rec.rows) == int(oracle.stats["num_steps"])
+    for row in rec.rows[-3:]:
+        assert row["loss"] == pytest.approx(float(loss(jnp.asarray(row["z"]), None)[0]), rel=1e-4, abs=1e-9)
+
+
 def _growing_experiment():
     from morphojax._experiment import Experiment, Initial, Phase
 
@@ -839,6 +870,49 @@ def test_likelihood_region_follows_the_loss_beyond_a_narrow_start():
     half = np.sqrt(delta) * scales
     reach = np.abs(region - 0.5).max(axis=0)
     assert (reach <= half + 1e-12).all() and (reach >= 0.75 * half).all()
+
+
+def test_likelihood_region_walks_only_along_open_sides():
+    """The same ellipse with the second axis's sides closed (the Laplace interval already at
+    its bounds): the walk still reaches the first axis's ends, but no round starts from a point
+    that is extreme only along the second; with every side closed there is no walk at all,
+    only the box."""
+    from fitting._uncertainty import likelihood_region
+
+    scales, delta = np.array([0.05, 0.2]), 5.991
+
+    def losses_at(u):
+        return (((np.asarray(u) - 0.5) / scales) ** 2).sum(axis=1)
+
+    start = {"u_star": [0.5, 0.5], "sd_u": np.array([0.02, 0.02]), "delta": delta, "seed": 1, "n": 40}
+    region, everything = likelihood_region(losses_at, **start)
+    one, some = likelihood_region(losses_at, **start, open_low=[True, False], open_high=[True, False])
+    _, box = likelihood_region(losses_at, **start, open_low=[False, False], open_high=[False, False])
+    half = np.sqrt(delta) * scales
+    assert np.abs(one[:, 0] - 0.5).max() >= 0.75 * half[0]
+    assert np.abs(one[:, 1] - 0.5).max() < 0.75 * half[1] <= np.abs(region[:, 1] - 0.5).max()
+    assert len(box) == 41 < len(some) < len(everything)
+
+
+def test_the_intervals_skip_the_region_where_laplace_spans_the_bounds(small_fit, monkeypatch):
+    """A misfit inflated a millionfold stretches every Laplace interval to its bounds: the
+    intervals are the bounds, after the Jacobian's evaluations alone (one batch), and no lower
+    point is reported."""
+    import fitting._uncertainty as uncertainty
+
+    _, _, result = small_fit
+    state = result.resume
+    tstats = {k: np.asarray(v, np.float32) for k, v in result.stats["target"].items()}
+    calls = []
+    vectors = uncertainty._vectors
+    monkeypatch.setattr(uncertainty, "_vectors", lambda *a: calls.append(1) or vectors(*a))
+    theta = np.array([result.params[n] for n in state.space.names], np.float32)
+    out, undetermined, _, better = uncertainty.interval_report(
+        state.sim, state.space, state.stats, theta, state.keys, tstats, state.noise, inflate=1e6,
+        floor=result.noise_floor)
+    assert len(calls) == 1 and better is None and undetermined == list(state.space.names)
+    for name, low, high in zip(state.space.names, state.space.low, state.space.high):
+        assert out[name] == pytest.approx((low, high), rel=1e-5)
 
 
 def test_sample_quantile_matches_a_scaled_chi_square():
