@@ -63,8 +63,8 @@ METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 DEGENERATE_PENALTY = 1e6  # added to a design point's loss when it is off the target's scale
 
 
-# compiled as one program: op by op, the target's statistics took 10.8 s in a new process
-# (about 340 small programs, each compiled on its own), as long as the fit's noise stage
+# the target's statistics as one compiled program: op by op, each of a few hundred small
+# programs is compiled on its own in every new process (benchmarks/results/fit_speed.md)
 _texture_stats = eqx.filter_jit(texture_stats)
 
 
@@ -161,10 +161,9 @@ def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
 
 
 # The local search is stepped from Python (`_search`), one compiled step at a time, and
-# records its point and loss after each step: a compiled program with a host callback
-# inside is never written to the persistent compilation cache, so while the loss reported
-# through one, every new process compiled the search again (14 s of a fit from the command
-# line, benchmarks/results/fit_speed.md).
+# records its point and loss after each step: no host callback inside its compiled program,
+# which the persistent compilation cache would never keep (every new process would compile
+# the search again; benchmarks/results/fit_speed.md).
 def _loss_fn(z, args):
     sim, space, cfg, keys, tstats, noise = args
     return distance(_stats_at(sim, space, cfg, space.from_free(z), keys), tstats, cfg, noise), None
