@@ -18,7 +18,8 @@ class FitResult:
 
     params: fitted values by name; model: the fitted model or experiment; loss: final loss
     (in noise units); noise_floor: the loss expected if the target were a sample of the fitted
-    parameters; history: list of {stage, start, evaluation, loss}; timings: seconds per stage;
+    parameters; history: list of {stage, start, evaluation, loss}, one row per design point and
+    per step of the local search (its point's loss); timings: seconds per stage;
     stats: target and fit statistics; report: region statistics (spot counts, areas,
     eccentricity, Euler number); design: the global stage's points and losses; fields: the
     target field and one simulated field of the fit ("fit"), for previews; a full fit's
