@@ -272,6 +272,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     # an interval (each is the union of both). Where it leaves none (a flat or a badly
     # misfitted direction on every parameter) the region is not searched, nor a lower point in it
     open_low, open_high = low > 0.0, high < 1.0
+    better = None
     if open_low.any() or open_high.any():
         groups = len(cfg.groups())
         sample_q95 = sample_quantile(floor, groups, floor_losses) if np.isfinite(floor) else 0.0
@@ -283,6 +284,9 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
             along = np.asarray(valley, np.float64)
             region = np.concatenate([region, along[losses_at(along) <= best + delta]])
         low, high = np.minimum(low, region.min(axis=0)), np.maximum(high, region.max(axis=0))
+        u_low, loss_low = min(seen, key=lambda item: item[1] if np.isfinite(item[1]) else np.inf)
+        if loss_low < BETTER * best:
+            better = (np.asarray(space.from_unit(jnp.asarray(u_low, jnp.float32))), float(loss_low))
     und = undetermined_mask(low, high, flat)
     out = {}
     for i, n in enumerate(space.names):
@@ -291,9 +295,4 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
         a = float(np.asarray(space.from_unit(jnp.asarray(lo_u, jnp.float32)))[i])
         b = float(np.asarray(space.from_unit(jnp.asarray(hi_u, jnp.float32)))[i])
         out[n] = (min(a, b), max(a, b))
-    better = None
-    if seen:
-        u_low, loss_low = min(seen, key=lambda item: item[1] if np.isfinite(item[1]) else np.inf)
-        if loss_low < BETTER * best:
-            better = (np.asarray(space.from_unit(jnp.asarray(u_low, jnp.float32))), float(loss_low))
     return out, [n for n, f in zip(space.names, und) if f], correlated, better
