@@ -39,7 +39,8 @@ from .solvers import ETDRK, IMEX, AbstractSolver, Euler, SteadyState
 from ._simulate import rollout, run_status, simulate
 from ._growth import DISTRIBUTIONS, Growth, Source
 from ._growing_mesh import MeshGrowth
-from ._experiment import Experiment, Initial, Phase, Result, load_experiment, run_experiment
+from ._experiment import Experiment, Initial, Phase, load_experiment
+from ._run_experiment import Result, run_experiment
 from ._serialise import load_npz, model_from_dict, model_to_dict, save_npz
 from ._files import to_jsonable
 from ._frames_files import load_frames, save_frames

@@ -36,7 +36,7 @@ from morphojax.presets._automaton_outputs import default_scale, lattice_picture
 from morphojax.presets._preset_files import load_automaton, load_solid
 
 from morphojax._checks import check_picture, check_run_size, check_scale  # sizes checked before a run
-from morphojax._experiment import check_progress  # a checkpoint's step against its phases
+from morphojax._run_experiment import check_progress  # a checkpoint's step against its phases
 from morphojax._files import remove_stale_temporaries
 
 from ._output import out_arg, picture_path, report

@@ -43,7 +43,8 @@ import time
 
 import numpy as np
 
-from .._experiment import Experiment, Initial, Phase, run_experiment
+from .._experiment import Experiment, Initial, Phase
+from .._run_experiment import run_experiment
 from .._files import write_npz
 from .._parameter_map import parameter_map
 from .._render import montage
