@@ -140,8 +140,8 @@ def screen(target, names, families, options, score=None, rule: str = "heldout", 
         # oriented families screen on the full lattice: a small torus admits only a few
         # stripe directions and spacings (those that close around it), which ranked the
         # zebra's stripes below labyrinths on 32x32
-        opts = {**options, "shape": tuple(options["shape"]) if fam.oriented else half, "seeds": 2, "design_seeds": 2,
-                "rounds": 0, "keep": 1, "max_steps": 0, "intervals": False, "n_design": 6 * len(mine),
+        opts = {**options, "shape": tuple(options["shape"]) if fam.oriented else half, "seeds": 2, "rounds": 0,
+                "keep": 1, "max_steps": 0, "intervals": False, "n_design": 6 * len(mine),
                 "fixed": _fixed_for(fam, options.get("fixed"))}
         res = fit_one(target, f, mine, progress=progress, stage_prefix="screen ", screen_only=True, **opts)
         lam, lam_t = res.config["wavelength"], res.config["target_wavelength"]

@@ -37,7 +37,7 @@ from ._verdict import (degenerate, heldout_distance, judge, split_target, target
 
 # One set of defaults for `fit` and `morphojax fit` (the CLI reads them from here).
 DEFAULTS = {"model": "auto", "fit": None, "shape": (64, 64), "steps": None, "window": None, "seeds": 4,
-            "design_seeds": 1, "seed": 0, "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs",
+            "design_seeds": 2, "seed": 0, "n_design": None, "rounds": 2, "keep": 1, "method": "bfgs",
             "max_steps": 40, "binarise": True, "orientation": True, "progress": None, "screen": "heldout",
             "refine": True}
 

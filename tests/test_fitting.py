@@ -473,7 +473,7 @@ def test_cli_and_python_defaults_are_the_same():
     # orientation on everywhere (oriented families exist), and --no-orientation turns it off
     assert cli["orientation"] is True and fitting.StatsConfig().orientation is True
     assert parser.parse_args(["p.png", "--json", "f.json", "--no-orientation"]).orientation is False
-    assert cli["design_seeds"] == api["design_seeds"] == 1
+    assert cli["design_seeds"] == api["design_seeds"] == 2
 
 
 # ---- model families -----------------------------------------------------------------------
