@@ -56,16 +56,12 @@ from ._result import FitResult
 from ._scale import moved_length, snap_threshold, snap_to_wavelength
 from ._simulator import Simulator, fixed_tuple
 from ._space import ParamSpace
-from ._stats import distance, mean_stats, noise_of, residuals, texture_stats
+from ._stats import (compiled_distance, compiled_noise_of, compiled_texture_stats, distance, mean_stats, residuals,
+                     texture_stats)
 from ._verdict import off_scale, target_wavelength, wavelength_of
 
 METHODS = ("bfgs", "lm", "nelder-mead", "gd")
 DEGENERATE_PENALTY = 1e6  # added to a design point's loss when it is off the target's scale
-
-
-# the target's statistics as one compiled program: op by op, each of a few hundred small
-# programs is compiled on its own in every new process (benchmarks/results/fit_speed.md)
-_texture_stats = eqx.filter_jit(texture_stats)
 
 
 def target_stats(field, stats, wavelength: float | None = None) -> dict:
@@ -75,7 +71,7 @@ def target_stats(field, stats, wavelength: float | None = None) -> dict:
     of its spectrum with the shading removed (`fitting._verdict.target_wavelength`, within
     9% of the soft argmax on clean simulations): `wavelength` where it was measured on more
     than `field` (a training half carries its whole target's: `Target.wavelength`)."""
-    tstats = jax.tree_util.tree_map(np.asarray, _texture_stats(jnp.asarray(field, jnp.float32), stats))
+    tstats = jax.tree_util.tree_map(np.asarray, compiled_texture_stats(jnp.asarray(field, jnp.float32), stats))
     pattern = target_wavelength(field) if wavelength is None else float(wavelength)
     if np.isfinite(pattern):
         tstats["wavelength"] = np.asarray(pattern, tstats["wavelength"].dtype)
@@ -151,12 +147,12 @@ def _loss_of(sim, space, cfg, z, keys, tstats, noise) -> tuple[float, float]:
     program). The wavelength is the verdict's (the median over seeds of each field's spectral
     peak, `wavelength_of`), not the loss's soft-argmax: the guard that keeps a search on the
     target's scale (`walked_off`) then judges it as the snap and the degenerate check do."""
-    theta = space.from_free(jnp.asarray(z, jnp.float32))
+    theta = space.from_free(np.asarray(z, np.float32))
     per_seed, fields = _seed_run(sim, space, cfg, theta, keys)
     mean = jax.tree_util.tree_map(lambda v: np.mean(np.asarray(v), axis=0), per_seed)
     peaks = [wavelength_of(f) for f in np.asarray(fields)]
     lam = float(np.nanmedian(peaks)) if np.isfinite(peaks).any() else float("nan")  # flat fields: no wavelength
-    return float(distance(mean, tstats, cfg, noise)), lam
+    return float(compiled_distance(mean, tstats, cfg, noise)), lam
 
 
 
@@ -382,7 +378,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
         keeping the better of the two. A placed point that settled within LANDED of the
         target's wavelength, and a point the move leaves where it is (a bound, an unknown
         wavelength), is not simulated again."""
-        thetas = np.array(space.from_unit(jnp.asarray(unit_points, jnp.float32)))
+        thetas = space.from_unit(np.asarray(unit_points, np.float32))
         placed = np.zeros(len(thetas), bool)
         if move and predictable:
             thetas, placed = place(sim, names, thetas, length, float(tstats["wavelength"]), space.low[length],
@@ -461,7 +457,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
     t0 = time.perf_counter()
     noise_keys = jax.random.split(jax.random.key(seed + 2), max(noise_seeds, 3))
     per_seed, _ = _seed_run(sim, space, stats, jnp.asarray(thetas[order[0]], jnp.float32), noise_keys)
-    noise = jax.tree_util.tree_map(np.asarray, noise_of(per_seed))
+    noise = jax.tree_util.tree_map(np.asarray, compiled_noise_of(per_seed))
     timings["noise"] = time.perf_counter() - t0
 
     state = FitState(sim, space, stats, keys, noise, length, length_power,
@@ -541,7 +537,7 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
     sim, space, stats, keys, noise = state.sim, state.space, state.stats, state.keys, state.noise
     names, seeds, length = list(space.names), state.settings["seeds"], state.length
     best_loss, z_best, used, _ = finals[0]
-    theta_best = jnp.asarray(space.from_free(jnp.asarray(z_best)), jnp.float32)
+    theta_best = space.from_free(np.asarray(z_best, np.float32))
     params = {n: float(theta_best[j]) for j, n in enumerate(names)}
     # the floor's seeds: as many as the noise's, so the same compiled batch serves both
     floor_keys = jax.random.split(jax.random.key(state.settings["seed"] + 3), max(state.settings["noise_seeds"], 3))
@@ -561,13 +557,14 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
         """(mean statistics, single samples' losses against them, the samples) at theta."""
         fit_stats = run_at(theta)[0]
         singles, samples = _seed_run(sim, space, stats, jnp.asarray(theta, jnp.float32), floor_keys)
-        losses = np.array([float(distance({k: v[i] for k, v in singles.items()}, fit_stats, stats, noise))
+        singles = jax.tree_util.tree_map(np.asarray, singles)
+        losses = np.array([float(compiled_distance({k: v[i] for k, v in singles.items()}, fit_stats, stats, noise))
                            for i in range(len(floor_keys))])
         return fit_stats, losses, samples
 
     fit_stats, floor_losses, samples = floor_at(theta_best)
     if not np.isfinite(best_loss):
-        best_loss = float(distance(fit_stats, tstats, stats, noise))
+        best_loss = float(compiled_distance(fit_stats, tstats, stats, noise))
         finals[0] = (best_loss, *finals[0][1:3], best_loss)
     floor = float(np.mean(floor_losses))
     snap = None
@@ -578,7 +575,7 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
             """(loss, wavelength) at theta: the loss as the local stage measures it, the
             wavelength as the verdict does (the median over seeds of each sample's peak)."""
             mean, fields = run_at(theta)
-            return float(distance(mean, tstats, stats, noise)), float(np.nanmedian([wavelength_of(f) for f in fields]))
+            return float(compiled_distance(mean, tstats, stats, noise)), float(np.nanmedian([wavelength_of(f) for f in fields]))
 
         snap_loss, snap_wavelength = loss_and_scale(theta_best)
         threshold = snap_threshold(seeds, best_loss / floor if floor > 0 else 1.0)
@@ -597,7 +594,7 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
     from ._report import region_stats
 
     report = {"target": region_stats(target.field), "fit": region_stats(sample)}
-    score = float(distance(fit_stats, tstats, stats))
+    score = float(compiled_distance(fit_stats, tstats, stats))
     _spent(timings, "report", t0)
     ivals, undetermined, correlated, better = {}, [], [], None
     if intervals:
@@ -636,7 +633,7 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
                   "threshold": threshold, "tried": snap["tried"]},
               "simulator": sim.describe(), "stats": dataclasses.asdict(stats), "starts": [
                   {"start_loss": f[3], "final_loss": f[0], "method": f[2],
-                   "params": {n: float(v) for n, v in zip(names, np.asarray(space.from_free(jnp.asarray(f[1]))))}}
+                   "params": {n: float(v) for n, v in zip(names, space.from_free(np.asarray(f[1], np.float32)))}}
                   for f in finals]}
     return FitResult(
         params=params, model=sim.build(params), loss=float(best_loss), noise_floor=floor, history=history,

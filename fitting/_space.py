@@ -15,6 +15,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from scipy.special import expit
 
 # name: (low, high, geometric?), grouped by the model that has the parameter
 DEFAULT_BOUNDS = {
@@ -101,19 +102,22 @@ class ParamSpace:
         return [i for i, n in enumerate(self.names) if base_name(n) in LIMITS]
 
     def from_unit(self, u):
-        """Unit coordinates (..., d) in [0, 1] -> parameter values (..., d)."""
-        u = jnp.asarray(u)
-        lo, hi = jnp.asarray(self.low, u.dtype), jnp.asarray(self.high, u.dtype)
-        geo = jnp.asarray(self.geometric)
+        """Unit coordinates (..., d) in [0, 1] -> parameter values (..., d). NumPy in, NumPy
+        out (a fit's bookkeeping between compiled programs: nothing is compiled); JAX in, JAX
+        out (inside a compiled loss, differentiable)."""
+        xp = np if isinstance(u, np.ndarray) else jnp
+        u = xp.asarray(u)
+        lo, hi = xp.asarray(self.low, u.dtype), xp.asarray(self.high, u.dtype)
+        geo = xp.asarray(self.geometric)
         lin = lo + u * (hi - lo)
-        log = jnp.exp(jnp.log(jnp.where(geo, lo, 1.0)) + u * (jnp.log(jnp.where(geo, hi, 2.0))
-                                                                 - jnp.log(jnp.where(geo, lo, 1.0))))
-        vals = jnp.where(geo, log, lin)
+        log = xp.exp(xp.log(xp.where(geo, lo, 1.0)) + u * (xp.log(xp.where(geo, hi, 2.0))
+                                                           - xp.log(xp.where(geo, lo, 1.0))))
+        vals = xp.where(geo, log, lin)
+        columns = [vals[..., i] for i in range(self.size)]
         for i, j in enumerate(self.paired):
             if j >= 0:  # upper tied above its lower limit
-                v = vals[..., j] + u[..., i] * (hi[i] - vals[..., j])
-                vals = vals.at[..., i].set(v)
-        return vals
+                columns[i] = columns[j] + u[..., i] * (hi[i] - columns[j])
+        return xp.stack(columns, axis=-1).astype(u.dtype)
 
     def to_unit(self, values):
         """Inverse of `from_unit` (NumPy, for starting points and reports)."""
@@ -131,7 +135,10 @@ class ParamSpace:
         return np.clip(u, 1e-6, 1 - 1e-6)
 
     def from_free(self, z):
-        """Unconstrained z (the optimisers' space) -> parameter values."""
+        """Unconstrained z (the optimisers' space) -> parameter values (NumPy in, NumPy out,
+        as `from_unit`)."""
+        if isinstance(z, np.ndarray):
+            return self.from_unit(expit(z))
         return self.from_unit(jax.nn.sigmoid(z))
 
     def to_free(self, values):

@@ -34,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -337,3 +338,13 @@ def mean_stats(fields, cfg: StatsConfig = StatsConfig()) -> dict:
     """Statistics averaged over a stack of fields (seeds), vmapped."""
     stats = jax.vmap(lambda x: texture_stats(x, cfg))(fields)
     return jax.tree_util.tree_map(lambda v: jnp.mean(v, axis=0), stats)
+
+
+# The same functions as single compiled programs, for calls from Python outside a compiled
+# program (the target's statistics, a fit's noise, report and intervals): run op by op, each
+# of their operations is compiled on its own for every group's shape in every new process,
+# some 400 small programs (benchmarks/results/fit_speed.md)
+compiled_texture_stats = eqx.filter_jit(texture_stats)
+compiled_distance = eqx.filter_jit(distance)
+compiled_stats_vector = eqx.filter_jit(stats_vector)
+compiled_noise_of = eqx.filter_jit(noise_of)

@@ -64,10 +64,9 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from ._stats import mean_stats, stats_vector
+from ._stats import compiled_stats_vector, mean_stats, stats_vector
 
 Z95 = 1.959964
 # The region's cost, in evaluations of the fit's loss (each `seeds` simulations): 16 d for
@@ -244,7 +243,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     u0 = np.clip(u_star, h, 1 - h)  # the difference points stay inside the bounds
     d = space.size
     pts = np.concatenate([u0 + h * np.eye(d), u0 - h * np.eye(d)])
-    thetas = space.from_unit(jnp.asarray(pts, jnp.float32))
+    thetas = space.from_unit(np.asarray(pts, np.float32))
     vecs = np.asarray(_vectors(sim, space, cfg, thetas, keys, noise), np.float64)
     if not np.isfinite(vecs).all():
         return {n: (float("nan"), float("nan")) for n in space.names}, list(space.names), [], None
@@ -253,7 +252,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
     scale = float(var[0])  # every component's variance: the loss in units of -2 log L
     low, high, sd, flat = laplace_intervals(J, u_star, var)
     correlated = correlated_pairs(J, var, space.names, flat)
-    target = np.asarray(stats_vector(tstats, cfg, noise), np.float64)
+    target = np.asarray(compiled_stats_vector(tstats, cfg, noise), np.float64)
 
     seen = []  # every point the region evaluates, with its loss
 
@@ -262,7 +261,7 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
         for i in range(0, len(units), 2 * d):
             part = units[i: i + 2 * d]
             padded = np.concatenate([part, np.repeat(part[-1:], 2 * d - len(part), 0)])
-            v = np.asarray(_vectors(sim, space, cfg, space.from_unit(jnp.asarray(padded, jnp.float32)), keys, noise),
+            v = np.asarray(_vectors(sim, space, cfg, space.from_unit(np.asarray(padded, np.float32)), keys, noise),
                            np.float64)
             out.append(((v - target) ** 2).sum(axis=1)[: len(part)])
         seen.extend(zip(np.asarray(units), np.concatenate(out)))
@@ -286,13 +285,13 @@ def interval_report(sim, space, cfg, theta, keys, tstats, noise, h: float = 0.04
         low, high = np.minimum(low, region.min(axis=0)), np.maximum(high, region.max(axis=0))
         u_low, loss_low = min(seen, key=lambda item: item[1] if np.isfinite(item[1]) else np.inf)
         if loss_low < BETTER * best:
-            better = (np.asarray(space.from_unit(jnp.asarray(u_low, jnp.float32))), float(loss_low))
+            better = (space.from_unit(np.asarray(u_low, np.float32)), float(loss_low))
     und = undetermined_mask(low, high, flat)
     out = {}
     for i, n in enumerate(space.names):
         lo_u, hi_u = u_star.copy(), u_star.copy()
         lo_u[i], hi_u[i] = low[i], high[i]
-        a = float(np.asarray(space.from_unit(jnp.asarray(lo_u, jnp.float32)))[i])
-        b = float(np.asarray(space.from_unit(jnp.asarray(hi_u, jnp.float32)))[i])
+        a = float(space.from_unit(np.asarray(lo_u, np.float32))[i])
+        b = float(space.from_unit(np.asarray(hi_u, np.float32))[i])
         out[n] = (min(a, b), max(a, b))
     return out, [n for n, f in zip(space.names, und) if f], correlated, better
