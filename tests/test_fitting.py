@@ -164,6 +164,19 @@ def test_param_space_bounds_and_ordering():
     assert (vals[:, 1] > 0).all() and (vals[:, 2] <= vals[:, 3]).all()
     back = np.asarray(space.from_free(jnp.asarray(space.to_free(vals[:20]), jnp.float32)))
     np.testing.assert_allclose(back, vals[:20], rtol=2e-3)
+    # NumPy in, NumPy out (the fit's bookkeeping: nothing compiled), the JAX path's values to
+    # float32 rounding, and both the transforms written out here (geometric ratio and scale,
+    # linear lower_b, upper_b = lower_b + u (20 - lower_b))
+    u = np.random.default_rng(2).uniform(size=(50, 4)).astype(np.float32)
+    host = space.from_unit(u)
+    assert isinstance(host, np.ndarray) and host.dtype == np.float32
+    np.testing.assert_allclose(host, np.asarray(space.from_unit(jnp.asarray(u))), rtol=1e-6)
+    lower_b = 5.0 * u[:, 2]
+    oracle = np.stack([2.0 * 25.0 ** u[:, 0], 0.2 * 40.0 ** u[:, 1], lower_b, lower_b + u[:, 3] * (20.0 - lower_b)], 1)
+    np.testing.assert_allclose(host, oracle, rtol=1e-5)
+    free = np.asarray(z[:50])
+    np.testing.assert_allclose(space.from_free(free), vals[:50], rtol=1e-6)
+    assert isinstance(space.from_free(free), np.ndarray)
     with pytest.raises(ValueError, match="no default bounds for parameter 'colour'"):
         fitting.ParamSpace.build(["colour"])
     with pytest.raises(ValueError, match="low < high"):
