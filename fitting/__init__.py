@@ -20,7 +20,7 @@ differentiated); Nelder-Mead takes over when gradients do not help.
 
 from ._auto import ORIENTED_COHERENCE, penalised
 from ._families import FAMILIES, Family, family, stripe_angle
-from ._fit import METHODS, gradient_descent
+from ._search import METHODS, gradient_descent
 from ._pipeline import DEFAULTS, fit, progress_default
 from ._result import FitResult
 from ._verdict import texture_distance

@@ -4,7 +4,8 @@
    pigment pattern; `fitting._verdict.split_target` keeps half of a large enough target
    apart for the verdict. The pattern's wavelength the fit aims at is the whole target's,
    as the scale and the verdict's (`Target.wavelength`).
-2. The family: one family's fit (`fitting._fit.fit_one`: design, local search, intervals),
+2. The family: one family's fit (`fitting._fit.fit_one`: the design, `fitting._design`; the
+   local search, `fitting._search`; the report and intervals, `fitting._uncertainty`),
    or `auto` (`fitting._auto`: every family screened, the best fitted in full, ranked by the
    held-out distance).
 3. The verdict and the report (`fitting._verdict`): each full fit's samples against the
@@ -26,9 +27,10 @@ from functools import partial
 from pathlib import Path
 
 from ._auto import TOP, fit_auto
-from ._fit import METHODS, add_intervals, fit_one
+from ._fit import add_intervals, fit_one
 from ._fit import refine as refine_fit
 from ._result import FitResult
+from ._search import METHODS
 from ._simulator import Simulator
 from ._stats import PHOTO_CAMERA, StatsConfig
 from ._target import Target, load_target

@@ -6,7 +6,7 @@ import pytest
 
 import morphojax as mj
 from fitting._families import FAMILIES
-from fitting._fit import keep_better
+from fitting._design import keep_better
 from fitting._predicted import applies, place, predicted_wavelengths
 from fitting._simulator import Simulator
 

@@ -304,14 +304,14 @@ def test_the_local_stage_judges_scale_as_the_verdict_does(small_fit):
     state = result.resume
     tstats = {k: np.asarray(v, np.float32) for k, v in result.stats["target"].items()}
     theta = np.array([result.params["ratio"], result.params["scale"]], np.float32)
-    _, lam = fitting._fit._loss_of(state.sim, state.space, state.stats, state.space.to_free(theta), state.keys,
+    _, lam = fitting._runs.loss_of(state.sim, state.space, state.stats, state.space.to_free(theta), state.keys,
                                    tstats, state.noise)
-    _, fields = fitting._fit._seed_run(state.sim, state.space, state.stats, theta, state.keys)
+    _, fields = fitting._runs.seed_run(state.sim, state.space, state.stats, theta, state.keys)
     assert lam == pytest.approx(float(np.median([fitting._verdict.wavelength_of(f) for f in np.asarray(fields)])))
 
 
 def test_a_search_that_walks_off_the_targets_scale_keeps_its_start():
-    from fitting._fit import walked_off
+    from fitting._search import walked_off
 
     assert not walked_off(10.0, 11.9, 10.0)  # ends on the scale (within 20%)
     assert walked_off(10.0, 12.5, 10.0) and walked_off(10.0, float("nan"), 10.0) and walked_off(5.0, 3.9, 4.5)  # grid-scale
@@ -331,10 +331,10 @@ def test_the_intervals_region_reports_a_lower_basin_than_the_fit(small_fit):
     off = np.array([result.params["ratio"], result.params["scale"] * 1.4], np.float32)
     _, _, _, better = interval_report(state.sim, state.space, state.stats, off, state.keys, tstats, state.noise,
                                       floor=result.noise_floor)
-    start, _ = fitting._fit._loss_of(state.sim, state.space, state.stats, state.space.to_free(off), state.keys,
+    start, _ = fitting._runs.loss_of(state.sim, state.space, state.stats, state.space.to_free(off), state.keys,
                                      tstats, state.noise)
     assert better is not None and better[1] < 0.98 * start
-    again, _ = fitting._fit._loss_of(state.sim, state.space, state.stats, state.space.to_free(better[0]),
+    again, _ = fitting._runs.loss_of(state.sim, state.space, state.stats, state.space.to_free(better[0]),
                                      state.keys, tstats, state.noise)
     assert again == pytest.approx(better[1], rel=1e-3)  # the reported loss is the point's
 
@@ -364,7 +364,7 @@ def test_the_stepped_search_is_optimistix_own_loop(method):
     and its loss (the accepted point, or the simplex's best vertex)."""
     import optimistix as optx
 
-    from fitting._fit import _Recorder, _search
+    from fitting._search import Recorder, search
 
     def residual(z, args):
         return jnp.stack([1.0 - z[0], 10.0 * (z[1] - z[0] ** 2)]), None
@@ -379,8 +379,8 @@ def test_the_stepped_search_is_optimistix_own_loop(method):
         fn, oracle = residual, optx.least_squares(residual, solver, z0, has_aux=True, max_steps=60, throw=False)
     else:
         fn, oracle = loss, optx.minimise(loss, solver, z0, has_aux=True, max_steps=60, throw=False)
-    rec = _Recorder()
-    z = _search(solver, fn, z0, None, 60, rec)
+    rec = Recorder()
+    z = search(solver, fn, z0, None, 60, rec)
     np.testing.assert_allclose(np.asarray(z), np.asarray(oracle.value), rtol=1e-5, atol=1e-6)
     assert len(rec.rows) == int(oracle.stats["num_steps"])
     for row in rec.rows[-3:]:
@@ -540,7 +540,7 @@ def test_family_loss_and_length_scale(name):
     lattice this small is not a clean power of the diffusion scale; the design keeps a move
     only when it lowers the loss; Young's automaton has no length law: its inhibitor radius
     is put 1.8x off)."""
-    from fitting._fit import _design_batch
+    from fitting._runs import design_batch
     from fitting._space import ParamSpace
 
     fam = fitting.FAMILIES[name]
@@ -561,7 +561,7 @@ def test_family_loss_and_length_scale(name):
     start[j] = np.clip(start[j] * factor, space.low[j], space.high[j])
     thetas = jnp.asarray(np.stack([[truth[n] for n in names], start]), jnp.float32)
     keys = jax.random.split(jax.random.key(1), 2)
-    losses, lams, _ = (np.asarray(v) for v in _design_batch(sim, space, cfg, thetas, keys, tstats))
+    losses, lams, _ = (np.asarray(v) for v in design_batch(sim, space, cfg, thetas, keys, tstats))
     assert losses[0] < losses[1]
     if name == "gray-scott" or fam.length is None:
         return
