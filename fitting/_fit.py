@@ -215,7 +215,7 @@ def _fit(target, sim, space, names, keys, tstats, stats, rec, timings, t_start, 
 
     state = FitState(sim, space, stats, keys, noise, length, length_power,
                      {"method": method, "max_steps": max_steps, "learning_rate": learning_rate, "fallback": fallback,
-                      "seeds": seeds, "seed": seed, "noise_seeds": noise_seeds}, tuple(bands))
+                      "seeds": seeds, "seed": seed, "noise_seeds": noise_seeds}, bands)
     t0 = time.perf_counter()
     starts = [space.to_free(thetas[i]) for i in order[: min(keep, len(order))]]
     finals = local_stage(state, tstats, starts, rec)
@@ -317,7 +317,7 @@ def _conclude(target, state: FitState, tstats, finals, rec, timings, t_start, se
     if better is not None and restart:
         t0 = time.perf_counter()
         rec.stage = "restart"
-        again = local_stage(state, tstats, [space.to_free(jnp.asarray(better[0], jnp.float32))], rec)
+        again = local_stage(state, tstats, [space.to_free(np.asarray(better[0], np.float32))], rec)
         _spent(timings, "restart", t0)
         if again[0][0] < best_loss:
             result = _conclude(target, state, tstats, sorted(again + finals, key=lambda f: f[0] if np.isfinite(f[0]) else np.inf), rec, timings,
@@ -366,7 +366,7 @@ def refine(result: FitResult, target, *, intervals: bool = True, progress=None) 
     tstats = target_stats(target.field, state.stats, target.wavelength)
     with recording(progress, f"refine {result.family}", 2 * max(int(state.settings["max_steps"]), 1)) as rec:
         rec.stage = "refine"
-        start = state.space.to_free(jnp.asarray([result.params[n] for n in state.space.names], jnp.float32))
+        start = state.space.to_free(np.asarray([result.params[n] for n in state.space.names], np.float32))
         finals = local_stage(state, tstats, [start], rec)
         timings = {k: v for k, v in result.timings.items() if k not in ("report", "intervals", "total")}
         timings["refine"] = time.perf_counter() - t_start
